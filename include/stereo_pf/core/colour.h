@@ -1,0 +1,83 @@
+// HSI colour space (thesis ch. 4.1) and its quantisation into histogram bins.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+namespace stereo_pf
+{
+/// One HSI triple: hue in degrees [0, 360), saturation and intensity in [0, 1].
+struct Hsi
+{
+  double h = 0.0;  ///< hue angle, degrees in [0, 360): 0 red, 120 green, 240 blue; 0 for greys
+  double s = 0.0;  ///< saturation in [0, 1]: 0 for greys (and black)
+  double i = 0.0;  ///< intensity in [0, 1]
+};
+
+/// Convert one RGB colour (0..255 each) to HSI: I = (R+G+B)/(3*255), S = 1 - min(R,G,B)/mean(R,G,B),
+/// H = atan2(sqrt(3)(G-B), 2R-G-B) in degrees (0 = red, 120 = green, 240 = blue); H = 0 and S = 0 for
+/// greys, S = 0 for black.
+Hsi rgbToHsi(double r, double g, double b);
+
+/// Settings of the HSI histogram: hue_bins x saturation_bins x intensity_bins bins, index
+/// (hue_bin * saturation_bins + saturation_bin) * intensity_bins + intensity_bin.
+struct HsiBinning
+{
+  /// Number of hue bins (equal slices of [0, 360), bin 0 starts at red).
+  int hue_bins = 8;
+  /// Number of saturation bins (equal slices of [0, 1]).
+  int saturation_bins = 8;
+  /// Number of intensity bins (equal slices of [0, 1]).
+  int intensity_bins = 4;
+  /// Pixels with saturation below this are achromatic: their hue is meaningless, so they all go
+  /// to hue bin 0 and are told apart by saturation and intensity (this is what makes white/grey
+  /// targets trackable).
+  double achromatic_saturation = 0.1;
+  /// Pixels darker than this (intensity) are also treated as achromatic (hue of near-black is noise).
+  double achromatic_intensity = 0.08;
+
+  /// Largest number of bins: bin images are CV_8UC1.
+  static constexpr int kMaxBins = 256;
+
+  /// Total number of bins.
+  int bins() const { return hue_bins * saturation_bins * intensity_bins; }
+  /// Bin index of an HSI triple, in [0, bins()).
+  int bin(const Hsi& hsi) const;
+  /// Throws std::invalid_argument when a bin count is < 1, bins() > kMaxBins, or a threshold is
+  /// outside [0, 1].
+  void validate() const;
+  /// Compact text naming every setting, e.g. "8x8x4/s0.100000/i0.080000" (cache keys, messages).
+  std::string describe() const;
+  /// True when both binnings produce the same bin for every colour.
+  bool sameAs(const HsiBinning& other) const;
+};
+
+/// Maps BGR pixels to HSI bin indices through a lookup table on 6-bit-per-channel colour
+/// (building it costs 2^18 conversions once, a few ms; each pixel then costs one table read).
+class HsiBinner
+{
+public:
+  /// Validates `binning` (std::invalid_argument when invalid) and builds the table.
+  explicit HsiBinner(const HsiBinning& binning = HsiBinning());
+  /// The settings the table was built with.
+  const HsiBinning& binning() const { return binning_; }
+  /// Bin of one BGR pixel.
+  uint8_t bin(uint8_t b, uint8_t g, uint8_t r) const { return lut_[((b >> 2) << 12) | ((g >> 2) << 6) | (r >> 2)]; }
+  /// Bin of one grey pixel (R = G = B = v), at full 8-bit resolution.
+  uint8_t binGray(uint8_t v) const { return gray_lut_[v]; }
+  /// Fill `bins` (CV_8UC1, same size; its buffer is reused when it already fits) with the bin index of
+  /// every pixel of a CV_8UC3 BGR, CV_8UC4 BGRA or CV_8UC1 grey image. Throws std::invalid_argument for
+  /// other types.
+  void binImage(const cv::Mat& image, cv::Mat& bins) const;
+
+private:
+  HsiBinning binning_;
+  std::vector<uint8_t> lut_;
+  std::array<uint8_t, 256> gray_lut_{};
+};
+
+}  // namespace stereo_pf

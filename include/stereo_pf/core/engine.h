@@ -1,0 +1,137 @@
+// The particle-filter engine: owns the particle sets and the RNG, runs one stereo frame through
+// predict -> project -> observe -> couple -> normalise -> estimate -> resample.
+#pragma once
+
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "stereo_pf/core/estimators.h"
+#include "stereo_pf/core/feature_cache.h"
+#include "stereo_pf/core/parameters.h"
+#include "stereo_pf/core/random.h"
+#include "stereo_pf/core/stereo_frame.h"
+#include "stereo_pf/observation_model.h"
+#include "stereo_pf/state_model.h"
+
+namespace stereo_pf
+{
+/// Track state from the likelihood evidence.
+enum class TrackState
+{
+  Searching,  ///< no lock yet (start, reset)
+  Tracking,   ///< evidence above found_similarity
+  Lost        ///< evidence fell below lost_similarity for lost_frames frames
+};
+/// "searching", "tracking" or "lost".
+std::string toString(TrackState state);
+
+/// Engine tunables (the `~engine/...` namespace, or the top level of the CLI config).
+struct EngineConfig
+{
+  int particles = 1000;               ///< per set
+  double resample_threshold = 1.0;    ///< resample when ESS < threshold * N (1.0: every frame, as the thesis)
+  Estimator estimator = Estimator::Mean;
+  double density_radius = 0.03;       ///< radius of the density estimate, in state units (m, or px for 2D sets)
+  unsigned long seed = 1;             ///< RNG seed
+  double nominal_dt = 1.0 / 30.0;     ///< dt used for the first frame and for non-increasing stamps
+  double found_similarity = 0.65;     ///< best mean cue similarity at or above this counts as "object seen"
+  double lost_similarity = 0.45;      ///< below this counts as "object not seen"
+  int found_frames = 2;               ///< consecutive seen frames to switch to Tracking
+  int lost_frames = 3;                ///< consecutive unseen frames to switch to Lost
+  double respawn_fraction = 0.2;      ///< fraction of each set redrawn from the prior every frame while not Tracking
+
+  /// Read from `params` (missing keys keep their defaults); throws ParameterError.
+  static EngineConfig fromParameters(const Parameters& params);
+};
+
+/// Result of one frame.
+struct FrameResult
+{
+  StateEstimate estimate;              ///< 3D estimate and image positions
+  TrackState state = TrackState::Searching;
+  double ess = 0.0;                    ///< effective sample size before resampling (minimum over sets)
+  double evidence = 0.0;               ///< best particle's mean cue similarity in [0, 1]
+  double log_marginal = 0.0;           ///< log mean likelihood (sum over sets)
+  bool resampled = false;
+  double dt = 0.0;                     ///< seconds since the previous frame
+};
+
+class FilterEngine
+{
+public:
+  /// Takes shared ownership of the plugins (their ClassLoader must outlive the engine's use of them).
+  FilterEngine(std::shared_ptr<StateModel> state_model, std::vector<std::shared_ptr<ObservationModel>> observation_models,
+               const EngineConfig& config);
+
+  /// Queue a new configuration (thread-safe); it is applied at the start of the next step() (never mid-step).
+  /// A new seed or particle count resets the filter.
+  void setConfig(const EngineConfig& config);
+  /// The configuration in force.
+  const EngineConfig& config() const { return config_; }
+  /// Ask plugins to re-read their parameters at the start of the next step().
+  void requestPluginReconfigure();
+
+  /// Forget the particles (re-drawn from the prior at the next frame) and reseed the RNG; keeps the target.
+  /// Thread-safe: takes effect at the start of the next step().
+  void reset();
+
+  /// Learn the target from `roi` in the left image of `frame` (every observation model learns it).
+  /// Returns false with `error` set when any model cannot.
+  bool learnTarget(const StereoFrame& frame, const cv::Rect& roi, std::string& error);
+  /// True when every enabled observation model has a target.
+  bool hasTarget() const;
+  /// Save / load every model's target (OpenCV YAML/XML file). False with `error` on failure.
+  bool saveTarget(const std::string& path, std::string& error) const;
+  bool loadTarget(const std::string& path, std::string& error);
+
+  /// Run one frame. The frame must be valid (StereoFrame::validate() empty) and a target learned;
+  /// throws std::invalid_argument otherwise.
+  FrameResult step(const StereoFrame& frame);
+
+  /// The particle sets after the last step (normalised weights; after resampling when it happened).
+  const std::vector<ParticleSet>& sets() const { return sets_; }
+  /// The feature cache of the last frame (debug drawing, tests).
+  FeatureCache& cache() { return cache_; }
+  /// The state model.
+  const StateModel& stateModel() const { return *state_model_; }
+  /// The observation models.
+  const std::vector<std::shared_ptr<ObservationModel>>& observationModels() const { return observation_models_; }
+  /// The hypotheses of the last step, per set and per view (debug drawing).
+  const std::vector<std::vector<ImageHypotheses>>& hypotheses() const { return hypotheses_; }
+
+private:
+  void applyPending();
+  void initialiseParticles(const StereoGeometry& geometry);
+  void respawn(const StereoGeometry& geometry, int set, int count);
+  void updateTrackState(double evidence);
+
+  std::shared_ptr<StateModel> state_model_;
+  std::vector<std::shared_ptr<ObservationModel>> observation_models_;
+  EngineConfig config_;
+
+  std::mutex pending_mutex_;
+  std::unique_ptr<EngineConfig> pending_config_;
+  bool pending_plugin_reconfigure_ = false;
+  bool pending_reset_ = false;
+
+  Rng rng_;
+  FeatureCache cache_;
+  std::vector<ParticleSet> sets_;
+  std::vector<std::vector<ImageHypotheses>> hypotheses_;
+  bool initialised_ = false;
+  double last_stamp_ = 0.0;
+  TrackState state_ = TrackState::Searching;
+  int seen_count_ = 0;
+  int unseen_count_ = 0;
+
+  // scratch buffers kept across frames
+  Eigen::VectorXd scratch_ll_, scratch_sim_, sum_sim_;
+  std::vector<int> resample_indices_;
+  Eigen::MatrixXd resample_scratch_;
+};
+
+}  // namespace stereo_pf

@@ -1,0 +1,99 @@
+// Normalised histograms over bin-index images and the Bhattacharyya similarity (thesis eq. 5.1-5.5).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+namespace stereo_pf
+{
+/// Histogram with precomputed square roots, for fast Bhattacharyya coefficients against sparse candidates.
+class TargetHistogram
+{
+public:
+  /// An empty (invalid) histogram.
+  TargetHistogram() = default;
+  /// From raw counts or weights (normalised here). An all-zero or empty input gives an empty (invalid)
+  /// histogram; a negative or non-finite entry throws std::invalid_argument.
+  explicit TargetHistogram(const std::vector<double>& counts);
+  /// Histogram of a CV_8UC1 or CV_16UC1 bin-index image over `roi` (clipped to the image), `bins` bins;
+  /// pixels whose index is >= bins are ignored. Empty (invalid) when no pixel counts.
+  /// Throws std::invalid_argument for another image type or bins < 1.
+  static TargetHistogram fromBinImage(const cv::Mat& bin_image, const cv::Rect& roi, int bins);
+
+  /// True when the histogram holds mass.
+  bool valid() const { return !p_.empty(); }
+  /// Number of bins (0 when invalid).
+  int bins() const { return static_cast<int>(p_.size()); }
+  /// Normalised probabilities.
+  const std::vector<double>& probabilities() const { return p_; }
+  /// sqrt of each probability.
+  const std::vector<double>& sqrtProbabilities() const { return sqrt_p_; }
+
+private:
+  std::vector<double> p_;
+  std::vector<double> sqrt_p_;
+};
+
+/// Bhattacharyya coefficient rho = sum_u sqrt(p_u q_u) of two normalised histograms (eq. 5.3), clamped to
+/// [0, 1]. Throws std::invalid_argument when the sizes differ.
+double bhattacharyya(const std::vector<double>& p, const std::vector<double>& q);
+
+/// Accumulates one candidate histogram from samples of a bin image and scores it against a target in
+/// time proportional to the samples, not the bins (only touched bins are visited). Reusable without
+/// allocation: reset() once, then add() or addGrid() and scoreAndClear() per candidate.
+class SparseHistogram
+{
+public:
+  /// Prepare for `bins` bins and typically at most `max_samples` samples per candidate (more are
+  /// allowed, just slower to score). Throws std::invalid_argument when bins < 1.
+  void reset(int bins, int max_samples);
+  /// Add one sample in bin b (must be in [0, bins); not checked).
+  void add(int b)
+  {
+    ++counts_[b * kBanks];
+    if (stamp_[b] != epoch_)
+    {
+      stamp_[b] = epoch_;
+      touched_[n_touched_++] = b;
+    }
+    ++n_;
+  }
+  /// Add the samples of a separable grid of a CV_8UC1 bin image: data[rows[j] * step + cols[k]] for every
+  /// j < nr and k < nc (each must be < bins; coordinates are not checked). Same result as add() on each,
+  /// several times faster: the bookkeeping stays in registers, and consecutive samples count into
+  /// different banks (neighbouring pixels usually share a bin, and a single counter would make every
+  /// increment wait for the previous one's store).
+  void addGrid(const uint8_t* data, size_t step, const int* rows, int nr, const int* cols, int nc);
+  /// Bhattacharyya coefficient rho = sum_b sqrt(c_b / n) sqrt(q_b) of the accumulated candidate against
+  /// `target` (which must have the same number of bins), then clears the candidate.
+  /// Returns 0 when no sample was added or the target is invalid.
+  double scoreAndClear(const TargetHistogram& target);
+  /// Number of samples added since the last clear.
+  int samples() const { return n_; }
+  /// Number of bins given to reset().
+  int bins() const { return static_cast<int>(stamp_.size()); }
+
+private:
+  static constexpr int kBanks = 4;
+
+  std::vector<int> counts_;       // kBanks counters per bin, [kBanks * b + bank]; all zero between candidates
+  // stamp_[b] == epoch_: bin b is listed in touched_ for this candidate. Only written on a first touch, so
+  // (unlike testing a counter for zero) it adds no store-to-load dependency between samples.
+  std::vector<uint32_t> stamp_;
+  std::vector<int> touched_;      // bins with a non-zero count, first n_touched_ entries
+  std::vector<double> sqrt_int_;  // sqrt(k) for k = 0..max_samples
+  uint32_t epoch_ = 1;
+  int n_touched_ = 0;
+  int n_ = 0;
+};
+
+/// Bhattacharyya log-likelihood of thesis eq. 5.5 without its constant: -(1 - rho) / (2 sigma^2).
+inline double bhattacharyyaLogLikelihood(double rho, double sigma)
+{
+  return -(1.0 - rho) / (2.0 * sigma * sigma);
+}
+
+}  // namespace stereo_pf

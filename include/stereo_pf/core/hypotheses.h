@@ -1,0 +1,31 @@
+// Image-space hypotheses: where a batch of particles says the object is in one image.
+#pragma once
+
+#include <vector>
+
+#include "stereo_pf/core/stereo_geometry.h"
+
+namespace stereo_pf
+{
+/// One batch of hypotheses in one view, one entry per particle (structure of arrays).
+struct ImageHypotheses
+{
+  View view = View::Left;        ///< image the hypotheses live in
+  std::vector<float> u;          ///< column of the object centre (pixels)
+  std::vector<float> v;          ///< row of the object centre (pixels)
+  std::vector<float> radius;     ///< apparent object radius (pixels)
+  std::vector<unsigned char> valid;  ///< 0 when the particle cannot be observed (behind camera, outside image)
+
+  /// Number of hypotheses.
+  int size() const { return static_cast<int>(u.size()); }
+  /// Resize every array to n entries.
+  void resize(int n)
+  {
+    u.resize(n);
+    v.resize(n);
+    radius.resize(n);
+    valid.resize(n);
+  }
+};
+
+}  // namespace stereo_pf

@@ -1,0 +1,72 @@
+// Base class of observation-model plugins (colour, texture, shape, ...): batch likelihoods of image
+// hypotheses. A new cue is one .cpp deriving from this, one line in observation_plugins.xml.
+#pragma once
+
+#include <string>
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include "stereo_pf/core/feature_cache.h"
+#include "stereo_pf/core/hypotheses.h"
+#include "stereo_pf/core/parameters.h"
+
+namespace stereo_pf
+{
+class ObservationModel
+{
+public:
+  virtual ~ObservationModel() = default;
+  ObservationModel(const ObservationModel&) = delete;
+  ObservationModel& operator=(const ObservationModel&) = delete;
+
+  /// Store the plugin's name and its parameter namespace (`params` is already scoped to `~/<name>`),
+  /// read the common parameters `enabled` and `weight`, then call onInitialize().
+  /// Throws ParameterError on invalid parameters.
+  void initialize(const std::string& name, const Parameters& params);
+
+  /// Learn the target appearance from `roi` of `view` in the frame held by `cache`.
+  /// Returns false (with `error` set) when the region is unusable (empty, outside the image, ...).
+  virtual bool learnTarget(FeatureCache& cache, View view, const cv::Rect& roi, std::string& error) = 0;
+  /// True once a target has been learned or loaded.
+  virtual bool hasTarget() const = 0;
+
+  /// Evaluate every hypothesis of one view: write the model's log-likelihood into `log_likelihood[i]`
+  /// (any constant offset is irrelevant) and a similarity in [0, 1] into `similarity[i]` (1 = looks
+  /// exactly like the target; used for the track state). Invalid hypotheses must get a finite low
+  /// log-likelihood and similarity 0. Both outputs have hyp.size() entries.
+  virtual void evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
+                        Eigen::Ref<Eigen::VectorXd> similarity) = 0;
+
+  /// Write the learned target under this plugin's name into an open cv::FileStorage.
+  virtual void saveTarget(cv::FileStorage& fs) const = 0;
+  /// Read the target written by saveTarget; false with `error` set when absent or inconsistent.
+  virtual bool loadTarget(const cv::FileNode& node, std::string& error) = 0;
+
+  /// Re-read tunables after the parameters changed (dynamic reconfigure). Called between frames.
+  /// The default re-reads `enabled` and `weight` only.
+  virtual void reconfigure();
+
+  /// Instance name (its parameter namespace).
+  const std::string& name() const { return name_; }
+  /// False when switched off by the `enabled` parameter.
+  bool enabled() const { return enabled_; }
+  /// Exponent on this model's likelihood (multiplies its log-likelihood), parameter `weight`.
+  double weight() const { return weight_; }
+
+protected:
+  ObservationModel() = default;
+  /// Read the plugin's own parameters from params(); throw ParameterError on bad values.
+  virtual void onInitialize() = 0;
+  /// The plugin's parameter namespace.
+  const Parameters& params() const { return params_; }
+
+private:
+  void readCommon();
+  std::string name_;
+  Parameters params_;
+  bool enabled_ = true;
+  double weight_ = 1.0;
+};
+
+}  // namespace stereo_pf

@@ -1,0 +1,105 @@
+// The HSI colour-histogram observation model (thesis ch. 4.1, eq. 5.1-5.5), pluginlib class
+// stereo_pf/ColourHSI. Declared here so tests can construct it directly; defined and exported in
+// plugins/observation/colour_hsi.cpp.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "stereo_pf/core/colour.h"
+#include "stereo_pf/core/histogram.h"
+#include "stereo_pf/observation_model.h"
+
+namespace stereo_pf
+{
+/// Colour likelihood: the HSI histogram of a window around each hypothesis is compared with the learned
+/// target histogram by the Bhattacharyya coefficient rho (eq. 5.3), giving log-likelihood
+/// -(1 - rho) / (2 sigma^2) (eq. 5.5 without its constant) and similarity rho.
+///
+/// The window depends on where the hypothesis comes from:
+/// - 2D hypotheses (the stereo-constraints model: radius <= 0) use the thesis's fixed `window` x `window`
+///   square (11 x 11 by default).
+/// - 3D hypotheses (radius > 0: the apparent radius of the ball from its depth) use a square of
+///   half-size `window_scale` * radius, i.e. with the default 0.7 the square sits inside the ball's disc,
+///   so near and far balls are judged on their own pixels. Radii below `min_radius` are clamped to it
+///   (a particle that far away cannot be observed better than a fixed minimum window).
+/// In both cases the window is sampled on a fixed `samples` x `samples` grid, so the cost per hypothesis
+/// is constant whatever the radius. Samples outside the image are skipped; a hypothesis with fewer than a
+/// quarter of its samples inside (or valid == 0, or non-finite position) gets similarity 0 and the
+/// log-likelihood of rho = 0.
+///
+/// Per-pixel work is shared: the HSI bin-index image of each view is computed once per frame through the
+/// FeatureCache (key "hsi_bins/<binning>", shared with any other instance with the same binning); each
+/// hypothesis then only reads bin indices. Not thread-safe (scratch buffers are members).
+///
+/// Parameters (in the plugin's namespace): hue_bins (8, 1..64), saturation_bins (8, 1..64),
+/// intensity_bins (4, 1..64) with product <= 256, achromatic_saturation (0.1, 0..1),
+/// achromatic_intensity (0.08, 0..1), sigma (0.15, 0.001..10), window (11, odd 3..101),
+/// window_scale (0.7, 0.1..3), samples (11, 3..31), min_radius (2 px, 0.5..100),
+/// target_margin (0.15, 0..0.45). The binning is structural (a learned target is tied to it) and is read
+/// at initialisation only; reconfigure() re-reads the others.
+class ColourHSI : public ObservationModel
+{
+public:
+  ColourHSI() = default;
+
+  /// Learn the target histogram from `roi` of `view`, shrunk by `target_margin` on each side to keep the
+  /// background out. False with `error` set when the region is empty, outside the image or too small.
+  bool learnTarget(FeatureCache& cache, View view, const cv::Rect& roi, std::string& error) override;
+  /// True once a target has been learned or loaded.
+  bool hasTarget() const override { return target_.valid(); }
+  /// Log-likelihood and similarity of every hypothesis (see the class comment). Without a target every
+  /// hypothesis is treated as invalid.
+  void evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
+                Eigen::Ref<Eigen::VectorXd> similarity) override;
+  /// Write a map named name() holding the binning and the target histogram (nothing without a target).
+  void saveTarget(cv::FileStorage& fs) const override;
+  /// Read a target written by saveTarget. `node` is either that map itself or a map containing it under
+  /// name(). False with `error` set when absent, malformed or learned with a different binning.
+  bool loadTarget(const cv::FileNode& node, std::string& error) override;
+  /// Re-read the common parameters and the tunables (everything but the binning); on a bad value throws
+  /// ParameterError and keeps the previous settings.
+  void reconfigure() override;
+
+  /// Target probability q_b of bin `b` (0 without a target or for an out-of-range bin): the
+  /// back-projection of the target, e.g. for detection-driven proposals.
+  double targetProbability(int bin) const;
+  /// The learned target histogram (invalid before learning).
+  const TargetHistogram& target() const { return target_; }
+  /// The binning in force (the defaults before initialize()).
+  const HsiBinning& binning() const { return binning_; }
+  /// The per-view bin-index image of the cache's current frame (CV_8UC1), computed on first use.
+  const cv::Mat& binImage(FeatureCache& cache, View view);
+
+protected:
+  /// Read and validate every parameter, build the colour table and the scratch buffers.
+  void onInitialize() override;
+
+private:
+  /// The tunables (everything that does not change the meaning of a bin).
+  struct Tunables
+  {
+    double sigma = 0.15;
+    int window = 11;
+    double window_scale = 0.7;
+    int samples = 11;
+    double min_radius = 2.0;
+    double target_margin = 0.15;
+  };
+  Tunables readTunables() const;
+  void applyTunables(const Tunables& t);
+
+  HsiBinning binning_;
+  std::unique_ptr<const HsiBinner> binner_;  // LUT, built once in onInitialize (not at construction: ~10 ms)
+  std::string cache_key_;     // FeatureCache key of the bin image, encodes the binning
+  Tunables tunables_;
+  TargetHistogram target_;
+  double invalid_log_likelihood_ = 0.0;  // log-likelihood of rho = 0
+  // scratch, sized in applyTunables: no allocation per hypothesis
+  std::vector<float> grid_;   // sample offsets in [-1, 1], `samples` entries
+  std::vector<int> cols_, rows_;
+  SparseHistogram candidate_;
+};
+
+}  // namespace stereo_pf

@@ -1,0 +1,40 @@
+// Shared base of the 3D state models (Position3D, Velocity3D): the first three state coordinates are
+// the object centre {x, y, z} in the left optical frame, projected into both images.
+#pragma once
+
+#include "stereo_pf/state_model.h"
+
+namespace stereo_pf
+{
+class PointModel3D : public StateModel
+{
+public:
+  /// One set, observed in both images.
+  std::vector<View> views(int set) const override;
+  /// Uniform over the part of the viewing frustum seen by both cameras, between z_min and z_max
+  /// (`init_depth`: uniform in volume, the default, in depth, or in disparity).
+  void samplePrior(const StereoGeometry& geometry, int set, ParticleSet& particles, int begin, int end,
+                   Rng& rng) const override;
+  /// Centre and apparent radius of the sphere in hyp.view; valid when in front of the camera and
+  /// inside the image.
+  void project(const StereoGeometry& geometry, int set, const ParticleSet& particles,
+               ImageHypotheses& hyp) const override;
+  /// Estimator over {x, y, z}, weighted covariance, projections; velocity when the state has one.
+  StateEstimate estimate(const StereoGeometry& geometry, const std::vector<ParticleSet>& sets, Estimator estimator,
+                         double density_radius) const override;
+  /// The particles' {x, y, z} and weights.
+  void cloud(const StereoGeometry& geometry, const std::vector<ParticleSet>& sets, Eigen::MatrixX3d& points,
+             Eigen::VectorXd& weights) const override;
+
+protected:
+  /// Read the shared parameters: noise, z_min, z_max, init_depth, object_radius.
+  void readCommonParameters();
+  /// Random-walk noise on x, y, z per frame (thesis eq. 5.12-5.14, the same alpha on every axis), m.
+  double noise_ = 0.01;
+  double z_min_ = 0.3;          ///< nearest depth of the prior, m
+  double z_max_ = 3.0;          ///< farthest depth of the prior, m
+  std::string init_depth_ = "volume";
+  double object_radius_ = 0.035;  ///< radius of the tracked sphere, m (sets the apparent radius)
+};
+
+}  // namespace stereo_pf

@@ -1,0 +1,30 @@
+// stereo_pf/Velocity3D: state {x, y, z, vx, vy, vz} with constant velocity (thesis 5.1's richer option).
+#pragma once
+
+#include "stereo_pf/plugins/point_model_3d.h"
+
+namespace stereo_pf
+{
+/// Parameters (namespace ~/<name>): as Position3D (noise is an extra position jitter per frame, default
+/// 0.003 m) plus acceleration_noise (m/s^2, 3.0), initial_speed (m/s standard deviation of the prior
+/// velocity, 0.3), max_speed (m/s, 10: velocities are clamped to keep a diverging particle finite).
+class Velocity3D : public PointModel3D
+{
+public:
+  int dimension(int) const override { return 6; }
+  /// Draws positions like Position3D and velocities from N(0, initial_speed).
+  void samplePrior(const StereoGeometry& geometry, int set, ParticleSet& particles, int begin, int end,
+                   Rng& rng) const override;
+  /// v += N(0, acceleration_noise * dt); x += v * dt + N(0, noise).
+  void predict(int set, double dt, ParticleSet& particles, Rng& rng) const override;
+
+protected:
+  void onInitialize() override;
+
+private:
+  double acceleration_noise_ = 3.0;
+  double initial_speed_ = 0.3;
+  double max_speed_ = 10.0;
+};
+
+}  // namespace stereo_pf

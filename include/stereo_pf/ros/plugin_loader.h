@@ -1,0 +1,60 @@
+// Building a FilterEngine and its plugins from configuration through pluginlib.
+#pragma once
+
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <pluginlib/class_loader.hpp>
+
+#include "stereo_pf/core/engine.h"
+
+namespace stereo_pf
+{
+/// Thrown when a plugin cannot be created; the message names the plugin, its type and, for an unknown
+/// type, every declared class.
+class PluginError : public std::runtime_error
+{
+public:
+  using std::runtime_error::runtime_error;
+};
+
+/// An engine with the plugins it runs on. The class loaders are declared first so they are destroyed
+/// last: no plugin outlives the loader that made it.
+class Tracker
+{
+public:
+  /// Read the configuration:
+  ///   state_model: {type: stereo_pf/Position3D, ...its parameters}        (default Position3D)
+  ///   observation_models: [{name: colour, type: stereo_pf/ColourHSI}, ...] (default one ColourHSI "colour")
+  ///   <name>: {...each observation model's parameters}
+  ///   engine: {particles, seed, resample_threshold, estimator, ...}
+  /// Throws PluginError or ParameterError with an explanation.
+  explicit Tracker(const Parameters& params);
+  ~Tracker();
+
+  /// The engine.
+  FilterEngine& engine() { return *engine_; }
+  const FilterEngine& engine() const { return *engine_; }
+  /// The type names of the loaded plugins (state model first).
+  const std::vector<std::string>& pluginTypes() const { return types_; }
+
+  /// Lookup names of every declared state model / observation model class.
+  std::vector<std::string> declaredStateModels() const;
+  std::vector<std::string> declaredObservationModels() const;
+
+  /// Create one plugin by lookup name (used by tests and tools too).
+  std::shared_ptr<StateModel> createStateModel(const std::string& type, const std::string& name,
+                                               const Parameters& params);
+  std::shared_ptr<ObservationModel> createObservationModel(const std::string& type, const std::string& name,
+                                                           const Parameters& params);
+
+private:
+  std::unique_ptr<pluginlib::ClassLoader<StateModel>> state_loader_;
+  std::unique_ptr<pluginlib::ClassLoader<ObservationModel>> observation_loader_;
+  std::vector<std::string> types_;
+  std::unique_ptr<FilterEngine> engine_;
+};
+
+}  // namespace stereo_pf

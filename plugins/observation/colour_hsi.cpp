@@ -1,0 +1,291 @@
+// HSI colour-histogram observation model (thesis eq. 5.1-5.5); see include/stereo_pf/plugins/colour_hsi.h.
+#include "stereo_pf/plugins/colour_hsi.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <sstream>
+#include <stdexcept>
+
+#include <pluginlib/class_list_macros.hpp>
+
+namespace stereo_pf
+{
+namespace
+{
+// A hypothesis needs at least this fraction of its samples inside the image to be judged at all:
+// a histogram of a few border pixels is too noisy to compare.
+constexpr int kMinInsideDenominator = 4;  // 1/4
+
+std::string rectText(const cv::Rect& r)
+{
+  std::ostringstream s;
+  s << r.width << "x" << r.height << " at (" << r.x << ", " << r.y << ")";
+  return s.str();
+}
+}  // namespace
+
+void ColourHSI::onInitialize()
+{
+  const Parameters& p = params();
+  HsiBinning b;
+  b.hue_bins = p.getInt("hue_bins", 8, 1, 64);
+  b.saturation_bins = p.getInt("saturation_bins", 8, 1, 64);
+  b.intensity_bins = p.getInt("intensity_bins", 4, 1, 64);
+  b.achromatic_saturation = p.getDouble("achromatic_saturation", 0.1, 0.0, 1.0);
+  b.achromatic_intensity = p.getDouble("achromatic_intensity", 0.08, 0.0, 1.0);
+  if (b.bins() > HsiBinning::kMaxBins)
+  {
+    const std::string ns = p.prefix().empty() ? "" : p.prefix() + "/";
+    throw ParameterError("parameters '" + ns + "hue_bins' x '" + ns + "saturation_bins' x '" + ns +
+                         "intensity_bins' = " + std::to_string(b.hue_bins) + " x " + std::to_string(b.saturation_bins) +
+                         " x " + std::to_string(b.intensity_bins) + " = " + std::to_string(b.bins()) +
+                         " bins; at most " + std::to_string(HsiBinning::kMaxBins) + " are allowed");
+  }
+  const Tunables t = readTunables();  // validate everything before changing any state
+
+  // The table is built once here; evaluate() only reads it (through the cached bin images).
+  binner_ = std::make_unique<const HsiBinner>(b);
+  binning_ = b;
+  cache_key_ = "hsi_bins/" + b.describe();
+  target_ = TargetHistogram();  // a target learned with another binning would be meaningless
+  applyTunables(t);
+}
+
+ColourHSI::Tunables ColourHSI::readTunables() const
+{
+  const Parameters& p = params();
+  Tunables t;
+  t.sigma = p.getDouble("sigma", 0.15, 0.001, 10.0);
+  t.window = p.getInt("window", 11, 3, 101);
+  if (t.window % 2 == 0)
+    throw ParameterError("parameter '" + (p.prefix().empty() ? std::string() : p.prefix() + "/") + "window' = " +
+                         std::to_string(t.window) + " must be odd (allowed: odd integers in [3, 101])");
+  t.window_scale = p.getDouble("window_scale", 0.7, 0.1, 3.0);
+  t.samples = p.getInt("samples", 11, 3, 31);
+  t.min_radius = p.getDouble("min_radius", 2.0, 0.5, 100.0);
+  t.target_margin = p.getDouble("target_margin", 0.15, 0.0, 0.45);
+  return t;
+}
+
+void ColourHSI::applyTunables(const Tunables& t)
+{
+  tunables_ = t;
+  invalid_log_likelihood_ = bhattacharyyaLogLikelihood(0.0, t.sigma);
+  // A fixed grid in [-1, 1]^2, scaled by the window half-size per hypothesis: constant cost per hypothesis.
+  grid_.resize(t.samples);
+  for (int k = 0; k < t.samples; ++k)
+    grid_[k] = static_cast<float>(-1.0 + 2.0 * k / (t.samples - 1));
+  cols_.resize(t.samples);
+  rows_.resize(t.samples);
+  candidate_.reset(binning_.bins(), t.samples * t.samples);
+}
+
+void ColourHSI::reconfigure()
+{
+  const Tunables t = readTunables();  // throws before anything changes
+  ObservationModel::reconfigure();
+  applyTunables(t);
+}
+
+const cv::Mat& ColourHSI::binImage(FeatureCache& cache, View view)
+{
+  if (!binner_)
+    throw std::logic_error("ColourHSI: used before initialize()");
+  return cache.get(view, cache_key_, [this](const cv::Mat& image, cv::Mat& out) { binner_->binImage(image, out); });
+}
+
+double ColourHSI::targetProbability(int bin) const
+{
+  if (!target_.valid() || bin < 0 || bin >= target_.bins())
+    return 0.0;
+  return target_.probabilities()[bin];
+}
+
+bool ColourHSI::learnTarget(FeatureCache& cache, View view, const cv::Rect& roi, std::string& error)
+{
+  const cv::Mat& image = cache.image(view);
+  if (image.empty())
+  {
+    error = name() + ": cannot learn the target: the frame has no image in this view";
+    return false;
+  }
+  if (roi.width <= 0 || roi.height <= 0)
+  {
+    error = name() + ": cannot learn the target: the region " + rectText(roi) + " is empty";
+    return false;
+  }
+  const cv::Rect bounds(0, 0, image.cols, image.rows);
+  if ((roi & bounds).empty())
+  {
+    error = name() + ": cannot learn the target: the region " + rectText(roi) + " lies outside the " +
+            std::to_string(image.cols) + "x" + std::to_string(image.rows) + " image";
+    return false;
+  }
+  // Shrink relative to the object's box first, then clip: the margin is about the object's outline
+  // (background corners of a ball's bounding box), not about the image border.
+  const int mx = static_cast<int>(std::lround(roi.width * tunables_.target_margin));
+  const int my = static_cast<int>(std::lround(roi.height * tunables_.target_margin));
+  const cv::Rect inner = cv::Rect(roi.x + mx, roi.y + my, roi.width - 2 * mx, roi.height - 2 * my) & bounds;
+  if (inner.width < 3 || inner.height < 3)
+  {
+    error = name() + ": cannot learn the target: the region " + rectText(roi) + " leaves only " +
+            rectText(inner) + " inside the image after the target_margin of " +
+            std::to_string(tunables_.target_margin) + " per side (at least 3x3 pixels needed)";
+    return false;
+  }
+  TargetHistogram t = TargetHistogram::fromBinImage(binImage(cache, view), inner, binning_.bins());
+  if (!t.valid())
+  {
+    error = name() + ": cannot learn the target: no pixel of " + rectText(inner) + " could be binned";
+    return false;
+  }
+  target_ = std::move(t);
+  return true;
+}
+
+void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
+                         Eigen::Ref<Eigen::VectorXd> similarity)
+{
+  const int n = hyp.size();
+  if (log_likelihood.size() != n || similarity.size() != n || static_cast<int>(hyp.v.size()) != n ||
+      static_cast<int>(hyp.radius.size()) != n || static_cast<int>(hyp.valid.size()) != n)
+    throw std::invalid_argument(name() + ": evaluate: hypothesis arrays and outputs must all have " +
+                                std::to_string(n) + " entries");
+  log_likelihood.setConstant(invalid_log_likelihood_);
+  similarity.setZero();
+  if (!target_.valid() || n == 0)
+    return;
+
+  const cv::Mat& bins = binImage(cache, hyp.view);  // once per view per frame, shared by every hypothesis
+  const int width = bins.cols;
+  const int height = bins.rows;
+  const size_t step = bins.step[0];
+  const uint8_t* data = bins.data;
+
+  const int s = tunables_.samples;
+  const int min_inside = (s * s + kMinInsideDenominator - 1) / kMinInsideDenominator;
+  const float fixed_half = 0.5f * static_cast<float>(tunables_.window - 1);
+  const float scale = static_cast<float>(tunables_.window_scale);
+  const float min_radius = static_cast<float>(tunables_.min_radius);
+  // Beyond this the window cannot have a quarter of its samples inside anyway; it also keeps cvRound in range.
+  const float max_half = 4.0f * static_cast<float>(std::max(width, height));
+  const double inv_two_sigma2 = 1.0 / (2.0 * tunables_.sigma * tunables_.sigma);
+  const float* grid = grid_.data();
+  int* cols = cols_.data();
+  int* rows = rows_.data();
+
+  for (int i = 0; i < n; ++i)
+  {
+    if (!hyp.valid[i])
+      continue;
+    const float u = hyp.u[i];
+    const float v = hyp.v[i];
+    const float r = hyp.radius[i];
+    // radius <= 0 (or NaN): a 2D hypothesis with the thesis's fixed window; otherwise scale with the ball.
+    float half = r > 0.0f ? scale * std::max(r, min_radius) : fixed_half;
+    half = std::min(half, max_half);
+    // Written so that NaN positions fail too.
+    if (!(u > -half - 1.0f && u < width + half + 1.0f && v > -half - 1.0f && v < height + half + 1.0f))
+      continue;
+
+    // Sample coordinates per axis once: the grid is separable, so inside-ness is too (no per-sample test).
+    int nc = 0;
+    int nr = 0;
+    for (int k = 0; k < s; ++k)
+    {
+      const int x = cvRound(u + half * grid[k]);
+      if (x >= 0 && x < width)
+        cols[nc++] = x;
+      const int y = cvRound(v + half * grid[k]);
+      if (y >= 0 && y < height)
+        rows[nr++] = y;
+    }
+    if (nc * nr < min_inside)
+      continue;
+
+    candidate_.addGrid(data, step, rows, nr, cols, nc);
+    const double rho = candidate_.scoreAndClear(target_);
+    log_likelihood[i] = -(1.0 - rho) * inv_two_sigma2;
+    similarity[i] = rho;
+  }
+}
+
+void ColourHSI::saveTarget(cv::FileStorage& fs) const
+{
+  if (!target_.valid())
+    return;
+  const HsiBinning& b = binning_;
+  fs << name() << "{";
+  fs << "type" << "stereo_pf/ColourHSI";
+  fs << "hue_bins" << b.hue_bins << "saturation_bins" << b.saturation_bins << "intensity_bins" << b.intensity_bins;
+  fs << "achromatic_saturation" << b.achromatic_saturation << "achromatic_intensity" << b.achromatic_intensity;
+  fs << "histogram" << target_.probabilities();
+  fs << "}";
+}
+
+bool ColourHSI::loadTarget(const cv::FileNode& node, std::string& error)
+{
+  // Accept the map itself or its parent (the file root).
+  cv::FileNode m = node;
+  if (m.isMap() && m["histogram"].empty())
+    m = node[name()];
+  if (m.empty() || !m.isMap())
+  {
+    error = name() + ": no colour target named '" + name() + "' in the file";
+    return false;
+  }
+  for (const char* key : { "hue_bins", "saturation_bins", "intensity_bins", "achromatic_saturation",
+                           "achromatic_intensity" })
+    if (!m[key].isInt() && !m[key].isReal())
+    {
+      error = name() + ": colour target lacks the number '" + key + "'";
+      return false;
+    }
+  HsiBinning stored;
+  stored.hue_bins = static_cast<int>(m["hue_bins"]);
+  stored.saturation_bins = static_cast<int>(m["saturation_bins"]);
+  stored.intensity_bins = static_cast<int>(m["intensity_bins"]);
+  stored.achromatic_saturation = static_cast<double>(m["achromatic_saturation"]);
+  stored.achromatic_intensity = static_cast<double>(m["achromatic_intensity"]);
+  if (!stored.sameAs(binning_))
+  {
+    error = name() + ": the colour target was learned with HSI binning " + stored.describe() +
+            " (hue x saturation x intensity / achromatic thresholds) but this model is configured with " +
+            binning_.describe() + "; relearn the target or set the same binning";
+    return false;
+  }
+  if (!m["histogram"].isSeq())
+  {
+    error = name() + ": colour target lacks its 'histogram' list";
+    return false;
+  }
+  std::vector<double> hist;
+  m["histogram"] >> hist;
+  if (static_cast<int>(hist.size()) != stored.bins())
+  {
+    error = name() + ": colour target histogram has " + std::to_string(hist.size()) + " entries, expected " +
+            std::to_string(stored.bins());
+    return false;
+  }
+  try
+  {
+    TargetHistogram t(hist);
+    if (!t.valid())
+    {
+      error = name() + ": colour target histogram is all zero";
+      return false;
+    }
+    target_ = std::move(t);
+  }
+  catch (const std::invalid_argument& e)
+  {
+    error = name() + ": colour target histogram is invalid: " + e.what();
+    return false;
+  }
+  return true;
+}
+
+}  // namespace stereo_pf
+
+PLUGINLIB_EXPORT_CLASS(stereo_pf::ColourHSI, stereo_pf::ObservationModel)

@@ -1,0 +1,49 @@
+// stereo_pf/Velocity3D: constant velocity with Gaussian acceleration noise; dt from the frame stamps.
+#include "stereo_pf/plugins/velocity_3d.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <pluginlib/class_list_macros.hpp>
+
+namespace stereo_pf
+{
+void Velocity3D::onInitialize()
+{
+  readCommonParameters();
+  // Velocity carries the motion, so the position jitter defaults much smaller than Position3D's walk.
+  noise_ = params().getDouble("noise", 0.003, 0.0, 10.0);
+  acceleration_noise_ = params().getDouble("acceleration_noise", 3.0, 0.0, 1000.0);
+  initial_speed_ = params().getDouble("initial_speed", 0.3, 0.0, 100.0);
+  max_speed_ = params().getDouble("max_speed", 10.0, 0.01, 1000.0);
+}
+
+void Velocity3D::samplePrior(const StereoGeometry& geometry, int set, ParticleSet& particles, int begin, int end,
+                             Rng& rng) const
+{
+  PointModel3D::samplePrior(geometry, set, particles, begin, end, rng);
+  std::normal_distribution<double> speed(0.0, initial_speed_);
+  for (int k = 3; k < 6; ++k)
+    for (int i = begin; i < end; ++i)
+      particles.states(i, k) = speed(rng);
+}
+
+void Velocity3D::predict(int, double dt, ParticleSet& particles, Rng& rng) const
+{
+  std::normal_distribution<double> accel(0.0, acceleration_noise_ * dt);
+  std::normal_distribution<double> jitter(0.0, noise_);
+  for (int k = 0; k < 3; ++k)
+  {
+    double* x = particles.states.col(k).data();
+    double* v = particles.states.col(k + 3).data();
+    for (int i = 0; i < particles.size(); ++i)
+    {
+      v[i] = std::clamp(v[i] + accel(rng), -max_speed_, max_speed_);
+      x[i] += v[i] * dt + jitter(rng);
+    }
+  }
+}
+
+}  // namespace stereo_pf
+
+PLUGINLIB_EXPORT_CLASS(stereo_pf::Velocity3D, stereo_pf::StateModel)

@@ -1,0 +1,161 @@
+#include "stereo_pf/core/colour.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <stdexcept>
+
+namespace stereo_pf
+{
+namespace
+{
+constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
+
+// floor(x * n) clamped into [0, n-1]: x == 1 (full saturation / white) belongs to the top bin.
+inline int sliceOf(double x, int n)
+{
+  const int k = static_cast<int>(x * n);
+  return k < 0 ? 0 : (k >= n ? n - 1 : k);
+}
+}  // namespace
+
+Hsi rgbToHsi(double r, double g, double b)
+{
+  Hsi out;
+  const double sum = r + g + b;
+  out.i = sum / (3.0 * 255.0);
+  if (sum <= 0.0)
+    return out;  // black: no hue, no saturation
+  const double mn = std::min(r, std::min(g, b));
+  const double mx = std::max(r, std::max(g, b));
+  out.s = 1.0 - 3.0 * mn / sum;
+  if (mx - mn <= 0.0)
+  {
+    out.s = 0.0;  // exact grey: atan2(0, 0) would be an arbitrary angle
+    return out;
+  }
+  // The standard HSI hue (Gonzalez & Woods) in its atan2 form: no acos domain problems near greys.
+  double h = std::atan2(std::sqrt(3.0) * (g - b), 2.0 * r - g - b) * kRadToDeg;
+  if (h < 0.0)
+    h += 360.0;
+  if (h >= 360.0)
+    h -= 360.0;
+  out.h = h;
+  return out;
+}
+
+int HsiBinning::bin(const Hsi& hsi) const
+{
+  const bool achromatic = hsi.s < achromatic_saturation || hsi.i < achromatic_intensity;
+  // Achromatic colours share hue bin 0; saturation and intensity still separate white, grey and black.
+  const int hb = achromatic ? 0 : sliceOf(hsi.h / 360.0, hue_bins);
+  const int sb = sliceOf(hsi.s, saturation_bins);
+  const int ib = sliceOf(hsi.i, intensity_bins);
+  return (hb * saturation_bins + sb) * intensity_bins + ib;
+}
+
+void HsiBinning::validate() const
+{
+  if (hue_bins < 1 || saturation_bins < 1 || intensity_bins < 1)
+    throw std::invalid_argument("HSI binning " + describe() + ": every bin count must be at least 1");
+  // Compare in 64 bits: three large ints could overflow the product.
+  const long long total = static_cast<long long>(hue_bins) * saturation_bins * intensity_bins;
+  if (total > kMaxBins)
+    throw std::invalid_argument("HSI binning " + describe() + " has " + std::to_string(total) +
+                                " bins; at most " + std::to_string(kMaxBins) + " fit a CV_8UC1 bin image");
+  if (!(achromatic_saturation >= 0.0 && achromatic_saturation <= 1.0) ||
+      !(achromatic_intensity >= 0.0 && achromatic_intensity <= 1.0))
+    throw std::invalid_argument("HSI binning " + describe() + ": achromatic thresholds must lie in [0, 1]");
+}
+
+std::string HsiBinning::describe() const
+{
+  char buf[128];
+  std::snprintf(buf, sizeof(buf), "%dx%dx%d/s%.6f/i%.6f", hue_bins, saturation_bins, intensity_bins,
+                achromatic_saturation, achromatic_intensity);
+  return buf;
+}
+
+bool HsiBinning::sameAs(const HsiBinning& other) const
+{
+  return hue_bins == other.hue_bins && saturation_bins == other.saturation_bins &&
+         intensity_bins == other.intensity_bins &&
+         std::abs(achromatic_saturation - other.achromatic_saturation) <= 1e-9 &&
+         std::abs(achromatic_intensity - other.achromatic_intensity) <= 1e-9;
+}
+
+HsiBinner::HsiBinner(const HsiBinning& binning) : binning_(binning), lut_(1u << 18)
+{
+  binning_.validate();
+  // Each 6-bit cell is represented by its centre value, so the table does not bias towards darker colours.
+  auto centre = [](int q) { return q * 4.0 + 1.5; };
+  for (int qb = 0; qb < 64; ++qb)
+    for (int qg = 0; qg < 64; ++qg)
+      for (int qr = 0; qr < 64; ++qr)
+        lut_[(qb << 12) | (qg << 6) | qr] =
+            static_cast<uint8_t>(binning_.bin(rgbToHsi(centre(qr), centre(qg), centre(qb))));
+  // Grey images have only 256 colours: bin them exactly instead of through the 6-bit table.
+  for (int v = 0; v < 256; ++v)
+    gray_lut_[v] = static_cast<uint8_t>(binning_.bin(rgbToHsi(v, v, v)));
+}
+
+void HsiBinner::binImage(const cv::Mat& image, cv::Mat& bins) const
+{
+  const int type = image.type();
+  if (type != CV_8UC3 && type != CV_8UC1 && type != CV_8UC4)
+    throw std::invalid_argument("HsiBinner::binImage: expected a CV_8UC3 (BGR), CV_8UC4 (BGRA) or CV_8UC1 image, got type " +
+                                std::to_string(type));
+  bins.create(image.size(), CV_8UC1);  // no reallocation when the cached buffer already fits
+  int rows = image.rows;
+  int cols = image.cols;
+  if (image.isContinuous() && bins.isContinuous())
+  {
+    // One long row: fewer loop restarts, and the inner loop is all the compiler has to optimise.
+    cols *= rows;
+    rows = 1;
+  }
+  const uint8_t* lut = lut_.data();
+  const int channels = image.channels();
+  for (int y = 0; y < rows; ++y)
+  {
+    const uint8_t* p = image.ptr<uint8_t>(y);
+    uint8_t* o = bins.ptr<uint8_t>(y);
+    int x = 0;
+    if (channels == 1)
+    {
+      const uint8_t* glut = gray_lut_.data();
+      for (; x < cols; ++x)
+        o[x] = glut[p[x]];
+      continue;
+    }
+    if (channels == 4)
+    {
+      for (; x < cols; ++x, p += 4)
+        o[x] = lut[((p[0] >> 2) << 12) | ((p[1] >> 2) << 6) | (p[2] >> 2)];
+      continue;
+    }
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+    // The loop is bound by instruction count, not by the table read (measured: an all-black image is
+    // barely faster), so read 4 pixels with two 8-byte loads and build each index with 3 shifts/masks
+    // from a little-endian word b | g << 8 | r << 16. ~25% faster than byte-wise reads.
+    // The second load reads 2 bytes past the 4th pixel, so stop while one more pixel of this row follows.
+    auto index = [](uint32_t w) { return ((w & 0xFCu) << 10) | ((w >> 4) & 0xFC0u) | ((w >> 18) & 0x3Fu); };
+    for (; x + 4 < cols; x += 4, p += 12)
+    {
+      uint64_t a = 0;
+      uint64_t b = 0;
+      std::memcpy(&a, p, 8);
+      std::memcpy(&b, p + 6, 8);
+      o[x] = lut[index(static_cast<uint32_t>(a))];
+      o[x + 1] = lut[index(static_cast<uint32_t>(a >> 24))];
+      o[x + 2] = lut[index(static_cast<uint32_t>(b))];
+      o[x + 3] = lut[index(static_cast<uint32_t>(b >> 24))];
+    }
+#endif
+    for (; x < cols; ++x, p += 3)
+      o[x] = lut[((p[0] >> 2) << 12) | ((p[1] >> 2) << 6) | (p[2] >> 2)];
+  }
+}
+
+}  // namespace stereo_pf

@@ -1,0 +1,329 @@
+#include "stereo_pf/core/engine.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "stereo_pf/core/resampling.h"
+
+namespace stereo_pf
+{
+std::string toString(TrackState state)
+{
+  switch (state)
+  {
+    case TrackState::Searching:
+      return "searching";
+    case TrackState::Tracking:
+      return "tracking";
+    case TrackState::Lost:
+      return "lost";
+  }
+  return "searching";
+}
+
+EngineConfig EngineConfig::fromParameters(const Parameters& p)
+{
+  EngineConfig c;
+  c.particles = p.getInt("particles", c.particles, 1, 1000000);
+  c.resample_threshold = p.getDouble("resample_threshold", c.resample_threshold, 0.0, 1.0);
+  try
+  {
+    c.estimator = estimatorFromString(p.getString("estimator", toString(c.estimator)));
+  }
+  catch (const std::invalid_argument& e)
+  {
+    throw ParameterError("parameter '" + (p.prefix().empty() ? "" : p.prefix() + "/") + "estimator': " + e.what());
+  }
+  c.density_radius = p.getDouble("density_radius", c.density_radius, 1e-6, 1e6);
+  c.seed = static_cast<unsigned long>(p.getInt("seed", static_cast<int>(c.seed), 0, 2147483647));
+  c.nominal_dt = p.getDouble("nominal_dt", c.nominal_dt, 1e-4, 10.0);
+  c.found_similarity = p.getDouble("found_similarity", c.found_similarity, 0.0, 1.0);
+  c.lost_similarity = p.getDouble("lost_similarity", c.lost_similarity, 0.0, 1.0);
+  if (c.lost_similarity > c.found_similarity)
+    throw ParameterError("parameter 'lost_similarity' (" + std::to_string(c.lost_similarity) +
+                         ") must not exceed 'found_similarity' (" + std::to_string(c.found_similarity) + ")");
+  c.found_frames = p.getInt("found_frames", c.found_frames, 1, 1000);
+  c.lost_frames = p.getInt("lost_frames", c.lost_frames, 1, 1000);
+  c.respawn_fraction = p.getDouble("respawn_fraction", c.respawn_fraction, 0.0, 1.0);
+  return c;
+}
+
+FilterEngine::FilterEngine(std::shared_ptr<StateModel> state_model,
+                           std::vector<std::shared_ptr<ObservationModel>> observation_models, const EngineConfig& config)
+  : state_model_(std::move(state_model)), observation_models_(std::move(observation_models)), config_(config)
+{
+  if (!state_model_)
+    throw std::invalid_argument("FilterEngine needs a state model");
+  if (observation_models_.empty())
+    throw std::invalid_argument("FilterEngine needs at least one observation model");
+  rng_.seed(config_.seed);
+}
+
+void FilterEngine::setConfig(const EngineConfig& config)
+{
+  std::lock_guard<std::mutex> lock(pending_mutex_);
+  pending_config_ = std::make_unique<EngineConfig>(config);
+}
+
+void FilterEngine::requestPluginReconfigure()
+{
+  std::lock_guard<std::mutex> lock(pending_mutex_);
+  pending_plugin_reconfigure_ = true;
+}
+
+void FilterEngine::reset()
+{
+  std::lock_guard<std::mutex> lock(pending_mutex_);
+  pending_reset_ = true;
+}
+
+void FilterEngine::applyPending()
+{
+  std::lock_guard<std::mutex> lock(pending_mutex_);
+  bool restart = pending_reset_;
+  pending_reset_ = false;
+  if (pending_config_)
+  {
+    // A different particle count or seed cannot be applied to a running filter without changing its
+    // history, so those restart it; everything else takes effect from this frame.
+    restart = restart || pending_config_->particles != config_.particles || pending_config_->seed != config_.seed;
+    config_ = *pending_config_;
+    pending_config_.reset();
+  }
+  if (pending_plugin_reconfigure_)
+  {
+    state_model_->reconfigure();
+    for (auto& m : observation_models_)
+      m->reconfigure();
+    pending_plugin_reconfigure_ = false;
+  }
+  if (restart)
+  {
+    rng_.seed(config_.seed);
+    initialised_ = false;
+    state_ = TrackState::Searching;
+    seen_count_ = unseen_count_ = 0;
+  }
+}
+
+bool FilterEngine::learnTarget(const StereoFrame& frame, const cv::Rect& roi, std::string& error)
+{
+  const std::string invalid = frame.validate();
+  if (!invalid.empty())
+  {
+    error = invalid;
+    return false;
+  }
+  cache_.reset(frame);
+  for (auto& m : observation_models_)
+  {
+    std::string e;
+    if (!m->learnTarget(cache_, View::Left, roi, e))
+    {
+      error = "observation model '" + m->name() + "': " + e;
+      return false;
+    }
+  }
+  return true;
+}
+
+bool FilterEngine::hasTarget() const
+{
+  return std::all_of(observation_models_.begin(), observation_models_.end(),
+                     [](const std::shared_ptr<ObservationModel>& m) { return !m->enabled() || m->hasTarget(); });
+}
+
+bool FilterEngine::saveTarget(const std::string& path, std::string& error) const
+{
+  try
+  {
+    cv::FileStorage fs(path, cv::FileStorage::WRITE);
+    if (!fs.isOpened())
+    {
+      error = "cannot write target file '" + path + "'";
+      return false;
+    }
+    for (const auto& m : observation_models_)
+      if (m->hasTarget())
+        m->saveTarget(fs);
+    return true;
+  }
+  catch (const cv::Exception& e)
+  {
+    error = "cannot write target file '" + path + "': " + e.what();
+    return false;
+  }
+}
+
+bool FilterEngine::loadTarget(const std::string& path, std::string& error)
+{
+  try
+  {
+    cv::FileStorage fs(path, cv::FileStorage::READ);
+    if (!fs.isOpened())
+    {
+      error = "cannot read target file '" + path + "'";
+      return false;
+    }
+    for (auto& m : observation_models_)
+    {
+      std::string e;
+      if (!m->loadTarget(fs[m->name()], e))
+      {
+        error = "target file '" + path + "', model '" + m->name() + "': " + e;
+        return false;
+      }
+    }
+    return true;
+  }
+  catch (const cv::Exception& e)
+  {
+    error = "cannot read target file '" + path + "': " + e.what();
+    return false;
+  }
+}
+
+void FilterEngine::initialiseParticles(const StereoGeometry& geometry)
+{
+  const int n = config_.particles;
+  sets_.resize(state_model_->numSets());
+  hypotheses_.resize(sets_.size());
+  for (int s = 0; s < static_cast<int>(sets_.size()); ++s)
+  {
+    sets_[s].resize(n, state_model_->dimension(s));
+    state_model_->samplePrior(geometry, s, sets_[s], 0, n, rng_);
+    const std::vector<View> views = state_model_->views(s);
+    hypotheses_[s].resize(views.size());
+    for (size_t k = 0; k < views.size(); ++k)
+      hypotheses_[s][k].view = views[k];
+  }
+  initialised_ = true;
+}
+
+void FilterEngine::respawn(const StereoGeometry& geometry, int set, int count)
+{
+  ParticleSet& p = sets_[set];
+  const int n = p.size();
+  count = std::min(count, n);
+  if (count <= 0)
+    return;
+  // Draw the fresh particles into the first `count` rows, after moving `count` randomly chosen rows there
+  // (partial Fisher-Yates), so which particles are replaced does not depend on their order.
+  for (int i = 0; i < count; ++i)
+  {
+    std::uniform_int_distribution<int> pick(i, n - 1);
+    const int j = pick(rng_);
+    if (j != i)
+    {
+      p.states.row(i).swap(p.states.row(j));
+      std::swap(p.weights[i], p.weights[j]);
+    }
+  }
+  state_model_->samplePrior(geometry, set, p, 0, count, rng_);
+  // A fresh particle starts with the average prior weight.
+  p.weights.head(count).setConstant(1.0 / n);
+  p.weights /= p.weights.sum();
+}
+
+void FilterEngine::updateTrackState(double evidence)
+{
+  const bool seen = evidence >= config_.found_similarity;
+  const bool unseen = evidence < config_.lost_similarity;
+  seen_count_ = seen ? seen_count_ + 1 : 0;
+  unseen_count_ = unseen ? unseen_count_ + 1 : 0;
+  if (state_ != TrackState::Tracking && seen_count_ >= config_.found_frames)
+    state_ = TrackState::Tracking;
+  else if (state_ == TrackState::Tracking && unseen_count_ >= config_.lost_frames)
+    state_ = TrackState::Lost;
+}
+
+FrameResult FilterEngine::step(const StereoFrame& frame)
+{
+  const std::string invalid = frame.validate();
+  if (!invalid.empty())
+    throw std::invalid_argument("FilterEngine::step: " + invalid);
+  if (!hasTarget())
+    throw std::invalid_argument("FilterEngine::step: no target learned or loaded");
+  applyPending();
+
+  const StereoGeometry& geometry = frame.geometry;
+  cache_.reset(frame);
+  FrameResult result;
+
+  double dt = initialised_ ? frame.stamp - last_stamp_ : config_.nominal_dt;
+  if (!(dt > 0.0) || !std::isfinite(dt))
+    dt = config_.nominal_dt;  // repeated or backwards stamps: assume the nominal period
+  last_stamp_ = frame.stamp;
+  result.dt = dt;
+
+  if (!initialised_)
+    initialiseParticles(geometry);
+  else
+  {
+    const int respawn_count =
+        state_ == TrackState::Tracking ? 0 : static_cast<int>(std::lround(config_.respawn_fraction * config_.particles));
+    for (int s = 0; s < static_cast<int>(sets_.size()); ++s)
+    {
+      state_model_->predict(s, dt, sets_[s], rng_);
+      respawn(geometry, s, respawn_count);
+    }
+  }
+
+  // Observe: every enabled model scores every hypothesis of every view of every set, in batches.
+  double evidence = std::numeric_limits<double>::infinity();
+  result.log_marginal = 0.0;
+  for (int s = 0; s < static_cast<int>(sets_.size()); ++s)
+  {
+    ParticleSet& p = sets_[s];
+    const int n = p.size();
+    // The previous weights are the prior of this step (uniform after resampling).
+    p.log_weights = p.weights.array().log();
+    sum_sim_.setZero(n);
+    int cues = 0;
+    for (ImageHypotheses& hyp : hypotheses_[s])
+    {
+      state_model_->project(geometry, s, p, hyp);
+      for (auto& model : observation_models_)
+      {
+        if (!model->enabled())
+          continue;
+        scratch_ll_.resize(n);
+        scratch_sim_.resize(n);
+        model->evaluate(cache_, hyp, scratch_ll_, scratch_sim_);
+        p.log_weights += model->weight() * scratch_ll_;
+        sum_sim_ += scratch_sim_;
+        ++cues;
+      }
+    }
+    // Evidence that the object is seen: the best particle's mean similarity over cues and views; for
+    // several sets (left and right images) the object must be seen in all of them.
+    const double best = cues > 0 ? sum_sim_.maxCoeff() / cues : 0.0;
+    evidence = std::min(evidence, best);
+    result.log_marginal += p.normalise();
+  }
+  result.evidence = std::isfinite(evidence) ? evidence : 0.0;
+
+  state_model_->couple(geometry, sets_);
+
+  result.ess = std::numeric_limits<double>::infinity();
+  for (const ParticleSet& p : sets_)
+    result.ess = std::min(result.ess, p.effectiveSampleSize());
+
+  result.estimate = state_model_->estimate(geometry, sets_, config_.estimator, config_.density_radius);
+  updateTrackState(result.evidence);
+  result.state = state_;
+
+  for (ParticleSet& p : sets_)
+  {
+    if (p.effectiveSampleSize() < config_.resample_threshold * p.size())
+    {
+      systematicResample(p, rng_, resample_indices_, resample_scratch_);
+      result.resampled = true;
+    }
+  }
+  return result;
+}
+
+}  // namespace stereo_pf

@@ -1,0 +1,164 @@
+#include "stereo_pf/core/histogram.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace stereo_pf
+{
+TargetHistogram::TargetHistogram(const std::vector<double>& counts)
+{
+  double sum = 0.0;
+  for (const double c : counts)
+  {
+    if (!std::isfinite(c) || c < 0.0)
+      throw std::invalid_argument("TargetHistogram: counts must be finite and non-negative, got " + std::to_string(c));
+    sum += c;
+  }
+  if (sum <= 0.0)
+    return;  // no mass: stays invalid
+  p_.resize(counts.size());
+  sqrt_p_.resize(counts.size());
+  for (size_t b = 0; b < counts.size(); ++b)
+  {
+    p_[b] = counts[b] / sum;
+    sqrt_p_[b] = std::sqrt(p_[b]);
+  }
+}
+
+TargetHistogram TargetHistogram::fromBinImage(const cv::Mat& bin_image, const cv::Rect& roi, int bins)
+{
+  if (bins < 1)
+    throw std::invalid_argument("TargetHistogram::fromBinImage: bins must be >= 1, got " + std::to_string(bins));
+  const int type = bin_image.type();
+  if (type != CV_8UC1 && type != CV_16UC1)
+    throw std::invalid_argument("TargetHistogram::fromBinImage: expected a CV_8UC1 or CV_16UC1 bin image, got type " +
+                                std::to_string(type));
+  const cv::Rect r = roi & cv::Rect(0, 0, bin_image.cols, bin_image.rows);
+  std::vector<double> counts(bins, 0.0);
+  for (int y = r.y; y < r.y + r.height; ++y)
+  {
+    if (type == CV_8UC1)
+    {
+      const uint8_t* row = bin_image.ptr<uint8_t>(y);
+      for (int x = r.x; x < r.x + r.width; ++x)
+        if (row[x] < bins)
+          counts[row[x]] += 1.0;
+    }
+    else
+    {
+      const uint16_t* row = bin_image.ptr<uint16_t>(y);
+      for (int x = r.x; x < r.x + r.width; ++x)
+        if (row[x] < bins)
+          counts[row[x]] += 1.0;
+    }
+  }
+  return TargetHistogram(counts);
+}
+
+double bhattacharyya(const std::vector<double>& p, const std::vector<double>& q)
+{
+  if (p.size() != q.size())
+    throw std::invalid_argument("bhattacharyya: histograms have " + std::to_string(p.size()) + " and " +
+                                std::to_string(q.size()) + " bins");
+  double rho = 0.0;
+  for (size_t u = 0; u < p.size(); ++u)
+    rho += std::sqrt(std::max(p[u], 0.0) * std::max(q[u], 0.0));
+  // Rounding can push identical histograms a hair above 1.
+  return std::min(rho, 1.0);
+}
+
+void SparseHistogram::reset(int bins, int max_samples)
+{
+  if (bins < 1)
+    throw std::invalid_argument("SparseHistogram::reset: bins must be >= 1, got " + std::to_string(bins));
+  counts_.assign(static_cast<size_t>(bins) * kBanks, 0);
+  stamp_.assign(bins, 0u);
+  epoch_ = 1;
+  touched_.assign(bins, 0);  // a bin is listed at most once per candidate
+  const int m = std::max(max_samples, 1);
+  sqrt_int_.resize(m + 1);
+  for (int k = 0; k <= m; ++k)
+    sqrt_int_[k] = std::sqrt(static_cast<double>(k));
+  n_touched_ = 0;
+  n_ = 0;
+}
+
+void SparseHistogram::addGrid(const uint8_t* data, size_t step, const int* rows, int nr, const int* cols, int nc)
+{
+  // Members in locals: a counter store could alias them (int / uint32_t), which would force a reload
+  // and a store of each after every sample.
+  int* counts = counts_.data();
+  int* touched = touched_.data();
+  uint32_t* stamp = stamp_.data();
+  const uint32_t epoch = epoch_;
+  int n_touched = n_touched_;
+  auto mark = [&](int b) {
+    if (stamp[b] != epoch)
+    {
+      stamp[b] = epoch;
+      touched[n_touched++] = b;
+    }
+  };
+  static_assert(kBanks == 4, "the unrolled loop below assumes 4 banks");
+  for (int j = 0; j < nr; ++j)
+  {
+    const uint8_t* row = data + static_cast<size_t>(rows[j]) * step;
+    int k = 0;
+    for (; k + 4 <= nc; k += 4)
+    {
+      const int b0 = row[cols[k]];
+      const int b1 = row[cols[k + 1]];
+      const int b2 = row[cols[k + 2]];
+      const int b3 = row[cols[k + 3]];
+      ++counts[b0 * kBanks];
+      ++counts[b1 * kBanks + 1];
+      ++counts[b2 * kBanks + 2];
+      ++counts[b3 * kBanks + 3];
+      mark(b0);
+      mark(b1);
+      mark(b2);
+      mark(b3);
+    }
+    for (; k < nc; ++k)
+    {
+      const int b = row[cols[k]];
+      ++counts[b * kBanks + (k & 3)];
+      mark(b);
+    }
+  }
+  n_touched_ = n_touched;
+  n_ += nr * nc;
+}
+
+double SparseHistogram::scoreAndClear(const TargetHistogram& target)
+{
+  const bool score = n_ > 0 && target.bins() == bins();
+  // rho = sum_b sqrt(c_b / n) sqrt(q_b) = (1 / sqrt(n)) sum_b sqrt(c_b) sqrt(q_b): one division per candidate.
+  const double* sqrt_q = score ? target.sqrtProbabilities().data() : nullptr;
+  const double* sqrt_int = sqrt_int_.data();
+  const int table_max = static_cast<int>(sqrt_int_.size()) - 1;
+  double sum = 0.0;
+  for (int k = 0; k < n_touched_; ++k)
+  {
+    const int b = touched_[k];
+    int* c = &counts_[static_cast<size_t>(b) * kBanks];
+    const int count = c[0] + c[1] + c[2] + c[3];
+    c[0] = c[1] = c[2] = c[3] = 0;
+    if (score)
+      sum += (count <= table_max ? sqrt_int[count] : std::sqrt(static_cast<double>(count))) * sqrt_q[b];
+  }
+  const double rho = score ? std::min(sum / std::sqrt(static_cast<double>(n_)), 1.0) : 0.0;
+  n_touched_ = 0;
+  n_ = 0;
+  // A new epoch unmarks every bin without visiting them; on wrap-around clear the stamps for real.
+  if (++epoch_ == 0)
+  {
+    std::fill(stamp_.begin(), stamp_.end(), 0u);
+    epoch_ = 1;
+  }
+  return rho;
+}
+
+}  // namespace stereo_pf

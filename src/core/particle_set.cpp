@@ -1,0 +1,56 @@
+#include "stereo_pf/core/particle_set.h"
+
+#include <cmath>
+#include <limits>
+
+namespace stereo_pf
+{
+void ParticleSet::resize(int n, int d)
+{
+  states.setZero(n, d);
+  setUniform();
+}
+
+void ParticleSet::setUniform()
+{
+  const int n = size();
+  log_weights.setZero(n);
+  weights.setConstant(n, n > 0 ? 1.0 / n : 0.0);
+}
+
+double ParticleSet::normalise()
+{
+  const int n = size();
+  weights.resize(n);
+  double max_lw = -std::numeric_limits<double>::infinity();
+  for (int i = 0; i < n; ++i)
+  {
+    const double lw = log_weights[i];
+    if (std::isfinite(lw) && lw > max_lw)
+      max_lw = lw;
+  }
+  if (!std::isfinite(max_lw))
+  {
+    // Every particle has zero (or NaN) likelihood: nothing to prefer, keep them all equally.
+    setUniform();
+    return -std::numeric_limits<double>::infinity();
+  }
+  double sum = 0.0;
+  for (int i = 0; i < n; ++i)
+  {
+    const double lw = log_weights[i];
+    const double w = std::isfinite(lw) ? std::exp(lw - max_lw) : 0.0;
+    weights[i] = w;
+    sum += w;
+  }
+  weights /= sum;
+  return max_lw + std::log(sum / n);
+}
+
+double ParticleSet::effectiveSampleSize() const
+{
+  const double s = weights.squaredNorm();
+  return s > 0.0 ? 1.0 / s : 0.0;
+}
+
+}  // namespace stereo_pf

@@ -1,0 +1,35 @@
+// Non-virtual initialisation of the plugin base classes (DESIGN style 2).
+#include "stereo_pf/observation_model.h"
+#include "stereo_pf/state_model.h"
+
+#include <limits>
+
+namespace stereo_pf
+{
+void ObservationModel::initialize(const std::string& name, const Parameters& params)
+{
+  name_ = name;
+  params_ = params;
+  readCommon();
+  onInitialize();
+}
+
+void ObservationModel::readCommon()
+{
+  enabled_ = params_.getBool("enabled", true);
+  weight_ = params_.getDouble("weight", 1.0, 0.0, 100.0);
+}
+
+void ObservationModel::reconfigure()
+{
+  readCommon();
+}
+
+void StateModel::initialize(const std::string& name, const Parameters& params)
+{
+  name_ = name;
+  params_ = params;
+  onInitialize();
+}
+
+}  // namespace stereo_pf

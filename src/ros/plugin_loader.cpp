@@ -1,0 +1,100 @@
+#include "stereo_pf/ros/plugin_loader.h"
+
+namespace stereo_pf
+{
+namespace
+{
+std::string join(const std::vector<std::string>& items)
+{
+  std::string s;
+  for (const auto& i : items)
+    s += (s.empty() ? "" : ", ") + i;
+  return s.empty() ? "(none: is this package on ROS_PACKAGE_PATH?)" : s;
+}
+
+template <class Base>
+std::shared_ptr<Base> create(pluginlib::ClassLoader<Base>& loader, const std::string& kind, const std::string& type,
+                             const std::string& name)
+{
+  const std::vector<std::string> declared = loader.getDeclaredClasses();
+  if (std::find(declared.begin(), declared.end(), type) == declared.end())
+    throw PluginError(kind + " '" + name + "': unknown type '" + type + "'; declared " + kind + " types: " +
+                      join(declared));
+  try
+  {
+    return std::shared_ptr<Base>(loader.createUnmanagedInstance(type));
+  }
+  catch (const pluginlib::PluginlibException& e)
+  {
+    throw PluginError(kind + " '" + name + "' of type '" + type + "' could not be created: " + e.what());
+  }
+}
+}  // namespace
+
+Tracker::Tracker(const Parameters& params)
+  : state_loader_(std::make_unique<pluginlib::ClassLoader<StateModel>>("stereo_pf", "stereo_pf::StateModel"))
+  , observation_loader_(
+        std::make_unique<pluginlib::ClassLoader<ObservationModel>>("stereo_pf", "stereo_pf::ObservationModel"))
+{
+  const Parameters state_params = params.sub("state_model");
+  const std::string state_type = state_params.getString("type", "stereo_pf/Position3D");
+  std::shared_ptr<StateModel> state = createStateModel(state_type, "state_model", state_params);
+  types_.push_back(state_type);
+
+  std::vector<std::shared_ptr<ObservationModel>> observations;
+  const Parameters list = params.sub("observation_models");
+  if (!list.has("0/type"))
+  {
+    if (!list.keys().empty())
+      throw PluginError("observation_models must be a list of {name, type} entries");
+    observations.push_back(createObservationModel("stereo_pf/ColourHSI", "colour", params.sub("colour")));
+    types_.push_back("stereo_pf/ColourHSI");
+  }
+  for (int i = 0; list.has(std::to_string(i) + "/type"); ++i)
+  {
+    const Parameters entry = list.sub(std::to_string(i));
+    const std::string type = entry.getString("type", "");
+    const std::string name = entry.getString("name", "");
+    if (name.empty())
+      throw PluginError("observation_models[" + std::to_string(i) + "] (type '" + type + "') needs a name");
+    for (const auto& m : observations)
+      if (m->name() == name)
+        throw PluginError("observation_models: the name '" + name + "' is used twice");
+    observations.push_back(createObservationModel(type, name, params.sub(name)));
+    types_.push_back(type);
+  }
+  engine_ = std::make_unique<FilterEngine>(state, observations, EngineConfig::fromParameters(params.sub("engine")));
+}
+
+Tracker::~Tracker()
+{
+  engine_.reset();  // drop the plugins before their loaders go
+}
+
+std::vector<std::string> Tracker::declaredStateModels() const
+{
+  return state_loader_->getDeclaredClasses();
+}
+
+std::vector<std::string> Tracker::declaredObservationModels() const
+{
+  return observation_loader_->getDeclaredClasses();
+}
+
+std::shared_ptr<StateModel> Tracker::createStateModel(const std::string& type, const std::string& name,
+                                                      const Parameters& params)
+{
+  auto model = create(*state_loader_, "state model", type, name);
+  model->initialize(name, params);
+  return model;
+}
+
+std::shared_ptr<ObservationModel> Tracker::createObservationModel(const std::string& type, const std::string& name,
+                                                                  const Parameters& params)
+{
+  auto model = create(*observation_loader_, "observation model", type, name);
+  model->initialize(name, params);
+  return model;
+}
+
+}  // namespace stereo_pf

@@ -1,0 +1,67 @@
+// The per-frame feature cache computes each product once per image per frame.
+#include <gtest/gtest.h>
+
+#include <opencv2/imgproc.hpp>
+
+#include "stereo_pf/core/feature_cache.h"
+
+using namespace stereo_pf;
+
+namespace
+{
+StereoFrame frame(int value)
+{
+  StereoFrame f;
+  f.geometry = StereoGeometry(100, 100, 32, 24, 0.1, 64, 48);
+  f.left = cv::Mat(48, 64, CV_8UC3, cv::Scalar::all(value));
+  f.right = cv::Mat(48, 64, CV_8UC3, cv::Scalar::all(255 - value));
+  cv::rectangle(f.left, cv::Rect(20, 10, 10, 10), cv::Scalar(255, 255, 255), cv::FILLED);
+  return f;
+}
+}  // namespace
+
+TEST(FeatureCache, ComputesOncePerImagePerFrame)
+{
+  FeatureCache cache;
+  cache.reset(frame(10));
+  int calls = 0;
+  auto compute = [&calls](const cv::Mat& image, cv::Mat& out) {
+    ++calls;
+    out = image.clone();
+  };
+  for (int k = 0; k < 5; ++k)
+  {
+    cache.get(View::Left, "copy", compute);
+    cache.get(View::Right, "copy", compute);
+  }
+  EXPECT_EQ(calls, 2);
+  cache.reset(frame(20));
+  const cv::Mat& l = cache.get(View::Left, "copy", compute);
+  EXPECT_EQ(calls, 3);
+  EXPECT_EQ(l.at<cv::Vec3b>(0, 0)[0], 20);  // recomputed from the new frame
+}
+
+TEST(FeatureCache, GradientMatchesSobel)
+{
+  FeatureCache cache;
+  const StereoFrame f = frame(0);
+  cache.reset(f);
+  const cv::Mat& mag = cache.gradientMagnitude(View::Left);
+  cv::Mat gray, gx, gy, expected;
+  cv::cvtColor(f.left, gray, cv::COLOR_BGR2GRAY);
+  cv::Sobel(gray, gx, CV_32F, 1, 0, 3);
+  cv::Sobel(gray, gy, CV_32F, 0, 1, 3);
+  cv::magnitude(gx, gy, expected);
+  EXPECT_EQ(cv::norm(mag, expected, cv::NORM_INF), 0.0);
+  EXPECT_GT(mag.at<float>(15, 20), 100.0f);  // on the square's edge
+  EXPECT_EQ(mag.at<float>(40, 5), 0.0f);     // flat background
+  const long count = cache.computeCount();
+  cache.gradientMagnitude(View::Left);
+  EXPECT_EQ(cache.computeCount(), count);  // shared, not recomputed
+}
+
+int main(int argc, char** argv)
+{
+  testing::InitGoogleTest(&argc, argv);
+  return RUN_ALL_TESTS();
+}
