@@ -38,6 +38,12 @@ public:
   virtual void evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
                         Eigen::Ref<Eigen::VectorXd> similarity) = 0;
 
+  /// Optional: a per-pixel map of how much each pixel looks like the target (CV_8UC1, 0..255, image size)
+  /// for the engine's detection-driven proposals while searching or lost (e.g. a colour back-projection).
+  /// Compute it through `cache` so it is made once per frame. Return false when the model has no such map
+  /// (the default) or no target.
+  virtual bool targetMap(FeatureCache& /*cache*/, View /*view*/, cv::Mat& /*map*/) { return false; }
+
   /// Write the learned target under this plugin's name into an open cv::FileStorage.
   virtual void saveTarget(cv::FileStorage& fs) const = 0;
   /// Read the target written by saveTarget; false with `error` set when absent or inconsistent.

@@ -46,6 +46,15 @@ public:
   /// Draw rows [begin, end) of `particles` from the prior (initialisation and re-spreading when lost).
   virtual void samplePrior(const StereoGeometry& geometry, int set, ParticleSet& particles, int begin, int end,
                            Rng& rng) const = 0;
+  /// Optional: put particle `row` of set `set` at the object seen at `left` in the left image and `right`
+  /// in the right image (same row after rectification), keeping whatever else the prior drew for it
+  /// (e.g. velocity). Used for detection-driven proposals. Return false when the pair is not a valid state
+  /// for this model (e.g. outside its depth range) or the model does not support it (the default).
+  virtual bool seedFromStereo(const StereoGeometry& /*geometry*/, int /*set*/, ParticleSet& /*particles*/, int /*row*/,
+                              const Pixel& /*left*/, const Pixel& /*right*/) const
+  {
+    return false;
+  }
   /// Dynamics: move every particle of `particles` by dt seconds (dt > 0; first frame uses the nominal period).
   virtual void predict(int set, double dt, ParticleSet& particles, Rng& rng) const = 0;
   /// Where each particle of `particles` would appear in `hyp.view` (hyp is resized to N).

@@ -65,13 +65,21 @@ ColourHSI::Tunables ColourHSI::readTunables() const
   t.samples = p.getInt("samples", 11, 3, 31);
   t.min_radius = p.getDouble("min_radius", 2.0, 0.5, 100.0);
   t.target_margin = p.getDouble("target_margin", 0.15, 0.0, 0.45);
+  t.surround_scale = p.getDouble("surround_scale", 1.25, 0.0, 4.0);
+  if (t.surround_scale > 0.0 && t.surround_scale < 1.0)
+    throw ParameterError("parameter '" + (p.prefix().empty() ? std::string() : p.prefix() + "/") +
+                         "surround_scale' = " + std::to_string(t.surround_scale) +
+                         " would put the ring inside the object (allowed: 0 = off, or 1..4)");
+  t.surround_samples = p.getInt("surround_samples", 32, 4, 256);
+  t.surround_weight = p.getDouble("surround_weight", 1.0, 0.0, 10.0);
   return t;
 }
 
 void ColourHSI::applyTunables(const Tunables& t)
 {
   tunables_ = t;
-  invalid_log_likelihood_ = bhattacharyyaLogLikelihood(0.0, t.sigma);
+  // rho = 0 and a ring that looks entirely like the target: the worst a hypothesis can score.
+  invalid_log_likelihood_ = -(1.0 + (t.surround_scale > 0.0 ? t.surround_weight : 0.0)) / (2.0 * t.sigma * t.sigma);
   // A fixed grid in [-1, 1]^2, scaled by the window half-size per hypothesis: constant cost per hypothesis.
   grid_.resize(t.samples);
   for (int k = 0; k < t.samples; ++k)
@@ -79,6 +87,15 @@ void ColourHSI::applyTunables(const Tunables& t)
   cols_.resize(t.samples);
   rows_.resize(t.samples);
   candidate_.reset(binning_.bins(), t.samples * t.samples);
+  ring_.reset(binning_.bins(), t.surround_samples);
+  ring_cos_.resize(t.surround_samples);
+  ring_sin_.resize(t.surround_samples);
+  for (int k = 0; k < t.surround_samples; ++k)
+  {
+    const double a = 2.0 * M_PI * k / t.surround_samples;
+    ring_cos_[k] = static_cast<float>(std::cos(a));
+    ring_sin_[k] = static_cast<float>(std::sin(a));
+  }
 }
 
 void ColourHSI::reconfigure()
@@ -141,6 +158,8 @@ bool ColourHSI::learnTarget(FeatureCache& cache, View view, const cv::Rect& roi,
     return false;
   }
   target_ = std::move(t);
+  ++target_version_;
+  learned_radius_ = 0.5f * static_cast<float>(std::min(roi.width, roi.height));
   return true;
 }
 
@@ -171,6 +190,9 @@ void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen:
   // Beyond this the window cannot have a quarter of its samples inside anyway; it also keeps cvRound in range.
   const float max_half = 4.0f * static_cast<float>(std::max(width, height));
   const double inv_two_sigma2 = 1.0 / (2.0 * tunables_.sigma * tunables_.sigma);
+  const float surround = static_cast<float>(tunables_.surround_scale);
+  const double surround_weight = tunables_.surround_weight;
+  const int ring_n = tunables_.surround_samples;
   const float* grid = grid_.data();
   int* cols = cols_.data();
   int* rows = rows_.data();
@@ -206,9 +228,41 @@ void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen:
 
     candidate_.addGrid(data, step, rows, nr, cols, nc);
     const double rho = candidate_.scoreAndClear(target_);
-    log_likelihood[i] = -(1.0 - rho) * inv_two_sigma2;
+    double penalty = 0.0;
+    const float ring_radius = surround * (r > 0.0f ? std::max(r, min_radius) : learned_radius_);
+    if (surround > 0.0f && ring_radius > 0.0f && ring_radius < max_half)
+    {
+      for (int k = 0; k < ring_n; ++k)
+      {
+        const int x = cvRound(u + ring_radius * ring_cos_[k]);
+        const int y = cvRound(v + ring_radius * ring_sin_[k]);
+        if (x >= 0 && x < width && y >= 0 && y < height)
+          ring_.add(data[y * step + x]);
+      }
+      penalty = surround_weight * ring_.scoreAndClear(target_);
+    }
+    log_likelihood[i] = -((1.0 - rho) + penalty) * inv_two_sigma2;
     similarity[i] = rho;
   }
+}
+
+bool ColourHSI::targetMap(FeatureCache& cache, View view, cv::Mat& map)
+{
+  if (!target_.valid())
+    return false;
+  const cv::Mat& bins = binImage(cache, view);
+  const std::string key = cache_key_ + "/backprojection/" + std::to_string(reinterpret_cast<uintptr_t>(this)) + "/" +
+                          std::to_string(target_version_);
+  map = cache.get(view, key, [this, &bins](const cv::Mat&, cv::Mat& out) {
+    // A 256-entry table from bin to scaled target probability, applied with OpenCV's LUT.
+    const std::vector<double>& q = target_.probabilities();
+    const double q_max = *std::max_element(q.begin(), q.end());
+    cv::Mat lut(1, 256, CV_8U, cv::Scalar(0));
+    for (size_t b = 0; b < q.size(); ++b)
+      lut.at<uint8_t>(static_cast<int>(b)) = cv::saturate_cast<uint8_t>(255.0 * q[b] / q_max);
+    cv::LUT(bins, lut, out);
+  });
+  return true;
 }
 
 void ColourHSI::saveTarget(cv::FileStorage& fs) const
@@ -277,6 +331,7 @@ bool ColourHSI::loadTarget(const cv::FileNode& node, std::string& error)
       return false;
     }
     target_ = std::move(t);
+    ++target_version_;
   }
   catch (const std::invalid_argument& e)
   {

@@ -7,7 +7,7 @@ namespace stereo_pf
 void PointModel3D::readCommonParameters()
 {
   const Parameters& p = params();
-  noise_ = p.getDouble("noise", 0.01, 0.0, 10.0);
+  noise_ = p.getDouble("noise", 0.04, 0.0, 10.0);
   z_min_ = p.getDouble("z_min", 0.3, 0.01, 1000.0);
   z_max_ = p.getDouble("z_max", 3.0, 0.01, 1000.0);
   if (z_max_ <= z_min_)
@@ -49,6 +49,16 @@ void PointModel3D::samplePrior(const StereoGeometry& g, int, ParticleSet& partic
     particles.states.row(i).setZero();
     particles.states.row(i).head<3>() = p.transpose();
   }
+}
+
+bool PointModel3D::seedFromStereo(const StereoGeometry& g, int, ParticleSet& particles, int row, const Pixel& left,
+                                  const Pixel& right) const
+{
+  Eigen::Vector3d p;
+  if (!g.triangulate(left, right.u, p) || p.z() < z_min_ || p.z() > z_max_)
+    return false;
+  particles.states.row(row).head<3>() = p.transpose();
+  return true;
 }
 
 void PointModel3D::project(const StereoGeometry& g, int, const ParticleSet& particles, ImageHypotheses& hyp) const

@@ -42,7 +42,7 @@ std::vector<int> rowOrder(const ParticleSet& set)
 void StereoConstraints::onInitialize()
 {
   const Parameters& p = params();
-  noise_ = p.getDouble("noise", 6.0, 0.0, 1000.0);
+  noise_ = p.getDouble("noise", 18.0, 0.0, 1000.0);
   epipolar_sigma_ = p.getDouble("epipolar_sigma", 2.0, 0.5, 100.0);
   max_disparity_ = p.getDouble("max_disparity", 0.0, 0.0, 1e5);
   if (max_disparity_ > 0.0 && max_disparity_ < 1.0)
@@ -262,6 +262,17 @@ void StereoConstraints::cloud(const StereoGeometry& geometry, const std::vector<
   for (int k = 0; k < n; ++k)
     if (!ok[static_cast<std::size_t>(k)])
       points.row(k) = mean;
+}
+
+bool StereoConstraints::seedFromStereo(const StereoGeometry&, int set, ParticleSet& particles, int row,
+                                       const Pixel& left, const Pixel& right) const
+{
+  if (!(left.u - right.u > 0.0))
+    return false;
+  const Pixel& px = set == 0 ? left : right;
+  particles.states(row, 0) = px.u;
+  particles.states(row, 1) = px.v;
+  return true;
 }
 
 }  // namespace stereo_pf

@@ -5,6 +5,8 @@
 #include <limits>
 #include <stdexcept>
 
+#include <opencv2/imgproc.hpp>
+
 #include "stereo_pf/core/resampling.h"
 
 namespace stereo_pf
@@ -47,6 +49,9 @@ EngineConfig EngineConfig::fromParameters(const Parameters& p)
   c.found_frames = p.getInt("found_frames", c.found_frames, 1, 1000);
   c.lost_frames = p.getInt("lost_frames", c.lost_frames, 1, 1000);
   c.respawn_fraction = p.getDouble("respawn_fraction", c.respawn_fraction, 0.0, 1.0);
+  c.tracking_respawn_fraction = p.getDouble("tracking_respawn_fraction", c.tracking_respawn_fraction, 0.0, 1.0);
+  c.proposal_fraction = p.getDouble("proposal_fraction", c.proposal_fraction, 0.0, 1.0);
+  c.proposal_min_depth = p.getDouble("proposal_min_depth", c.proposal_min_depth, 1e-3, 1e6);
   return c;
 }
 
@@ -222,9 +227,85 @@ void FilterEngine::respawn(const StereoGeometry& geometry, int set, int count)
     }
   }
   state_model_->samplePrior(geometry, set, p, 0, count, rng_);
+  // Part of the fresh particles go where the target's appearance is (both sets use the same pairs, so
+  // the stereo-constraints sets get consistent left/right halves).
+  const int proposed = std::min(static_cast<int>(proposals_.size()),
+                                static_cast<int>(std::lround(config_.proposal_fraction * count)));
+  for (int i = 0; i < proposed; ++i)
+    state_model_->seedFromStereo(geometry, set, p, i, proposals_[i].first, proposals_[i].second);
   // A fresh particle starts with the average prior weight.
   p.weights.head(count).setConstant(1.0 / n);
   p.weights /= p.weights.sum();
+}
+
+void FilterEngine::prepareProposals(const StereoGeometry& g, int count)
+{
+  proposals_.clear();
+  if (count <= 0 || config_.proposal_fraction <= 0.0)
+    return;
+  cv::Mat map_left, map_right;
+  bool have = false;
+  for (auto& m : observation_models_)
+    if (m->enabled() && m->targetMap(cache_, View::Left, map_left) && m->targetMap(cache_, View::Right, map_right))
+    {
+      have = true;
+      break;
+    }
+  if (!have)
+    return;
+  // Work on 4x4-pixel cells: a CDF over 20k cells instead of 300k pixels, and averaging suppresses
+  // isolated pixels that happen to share the target's colour.
+  constexpr int kCell = 4;
+  cv::resize(map_left, small_left_, cv::Size(map_left.cols / kCell, map_left.rows / kCell), 0, 0, cv::INTER_AREA);
+  cv::resize(map_right, small_right_, small_left_.size(), 0, 0, cv::INTER_AREA);
+  const int cols = small_left_.cols, rows = small_left_.rows;
+  proposal_cdf_.resize(static_cast<size_t>(cols) * rows);
+  double total = 0.0;
+  for (int y = 0; y < rows; ++y)
+  {
+    const uint8_t* row = small_left_.ptr<uint8_t>(y);
+    for (int x = 0; x < cols; ++x)
+    {
+      const double w = static_cast<double>(row[x]) * row[x];  // squared: favour strong matches
+      total += w;
+      proposal_cdf_[static_cast<size_t>(y) * cols + x] = total;
+    }
+  }
+  if (total <= 0.0)
+    return;
+  const double max_disparity = g.disparity(config_.proposal_min_depth);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  row_cdf_.resize(cols);
+  for (int k = 0; k < count; ++k)
+  {
+    const size_t cell = std::upper_bound(proposal_cdf_.begin(), proposal_cdf_.end(), unit(rng_) * total) -
+                        proposal_cdf_.begin();
+    const int cx = static_cast<int>(std::min(cell, proposal_cdf_.size() - 1) % cols);
+    const int cy = static_cast<int>(std::min(cell, proposal_cdf_.size() - 1) / cols);
+    const Pixel left{ (cx + unit(rng_)) * kCell - 0.5, (cy + unit(rng_)) * kCell - 0.5 };
+    // The partner lies on the same row, at a positive disparity up to that of the nearest depth.
+    const int first = std::max(0, static_cast<int>(std::floor((left.u - max_disparity) / kCell)));
+    const int last = std::min(cols - 1, static_cast<int>(std::floor((left.u - 1.0) / kCell)));
+    if (last < first)
+      continue;
+    const uint8_t* row = small_right_.ptr<uint8_t>(cy);
+    double row_total = 0.0;
+    for (int x = first; x <= last; ++x)
+    {
+      row_total += static_cast<double>(row[x]) * row[x];
+      row_cdf_[x - first] = row_total;
+    }
+    if (row_total <= 0.0)
+      continue;
+    const int n = last - first + 1;
+    const int rx = first + static_cast<int>(std::min<long>(
+                               std::upper_bound(row_cdf_.begin(), row_cdf_.begin() + n, unit(rng_) * row_total) -
+                                   row_cdf_.begin(),
+                               n - 1));
+    const Pixel right{ (rx + unit(rng_)) * kCell - 0.5, left.v };
+    if (left.u - right.u > 0.0)
+      proposals_.emplace_back(left, right);
+  }
 }
 
 void FilterEngine::updateTrackState(double evidence)
@@ -262,8 +343,10 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     initialiseParticles(geometry);
   else
   {
-    const int respawn_count =
-        state_ == TrackState::Tracking ? 0 : static_cast<int>(std::lround(config_.respawn_fraction * config_.particles));
+    const double fraction =
+        state_ == TrackState::Tracking ? config_.tracking_respawn_fraction : config_.respawn_fraction;
+    const int respawn_count = static_cast<int>(std::lround(fraction * config_.particles));
+    prepareProposals(geometry, static_cast<int>(std::lround(config_.proposal_fraction * respawn_count)));
     for (int s = 0; s < static_cast<int>(sets_.size()); ++s)
     {
       state_model_->predict(s, dt, sets_[s], rng_);

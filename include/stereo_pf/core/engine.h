@@ -42,7 +42,12 @@ struct EngineConfig
   double lost_similarity = 0.45;      ///< below this counts as "object not seen"
   int found_frames = 2;               ///< consecutive seen frames to switch to Tracking
   int lost_frames = 3;                ///< consecutive unseen frames to switch to Lost
-  double respawn_fraction = 0.2;      ///< fraction of each set redrawn from the prior every frame while not Tracking
+  double respawn_fraction = 0.2;      ///< fraction of each set redrawn every frame while not Tracking
+  double tracking_respawn_fraction = 0.0;  ///< the same while Tracking (lets the filter leave a distractor)
+  /// Share of the redrawn particles proposed from the observation models' target maps (a left pixel drawn
+  /// where the target's appearance is, a right pixel along the same row), the rest from the prior.
+  double proposal_fraction = 0.5;
+  double proposal_min_depth = 0.3;    ///< nearest depth (m) a proposal may have: bounds the disparity searched
 
   /// Read from `params` (missing keys keep their defaults); throws ParameterError.
   static EngineConfig fromParameters(const Parameters& params);
@@ -107,6 +112,7 @@ private:
   void applyPending();
   void initialiseParticles(const StereoGeometry& geometry);
   void respawn(const StereoGeometry& geometry, int set, int count);
+  void prepareProposals(const StereoGeometry& geometry, int count);
   void updateTrackState(double evidence);
 
   std::shared_ptr<StateModel> state_model_;
@@ -127,6 +133,11 @@ private:
   TrackState state_ = TrackState::Searching;
   int seen_count_ = 0;
   int unseen_count_ = 0;
+
+  // detection-driven proposals of this frame: (left pixel, right pixel) pairs
+  std::vector<std::pair<Pixel, Pixel>> proposals_;
+  cv::Mat small_left_, small_right_;
+  std::vector<double> proposal_cdf_, row_cdf_;
 
   // scratch buffers kept across frames
   Eigen::VectorXd scratch_ll_, scratch_sim_, sum_sim_;

@@ -24,6 +24,16 @@ namespace stereo_pf
 ///   half-size `window_scale` * radius, i.e. with the default 0.7 the square sits inside the ball's disc,
 ///   so near and far balls are judged on their own pixels. Radii below `min_radius` are clamped to it
 ///   (a particle that far away cannot be observed better than a fixed minimum window).
+/// Surround: a histogram inside the object only cannot tell a centred hypothesis from one shifted by a few
+/// pixels, or (for 3D hypotheses) a far one whose small window still fits inside the ball, which biases
+/// depth. So `surround_samples` points on a ring of radius `surround_scale` * radius around the hypothesis
+/// (radius: the apparent one, or for 2D hypotheses half the smaller side of the learning ROI) are
+/// compared with the target too, and their similarity rho_ring counts against the hypothesis:
+/// log-likelihood -((1 - rho) + surround_weight * rho_ring) / (2 sigma^2). A ring on the background scores
+/// low; a ring that cuts the object (wrong centre or too small a radius) scores high. The Bhattacharyya
+/// coefficient grows like the square root of the overlap, so even a slight overlap is felt.
+/// `surround_scale` 0 switches it off (the thesis's plain model).
+///
 /// In both cases the window is sampled on a fixed `samples` x `samples` grid, so the cost per hypothesis
 /// is constant whatever the radius. Samples outside the image are skipped; a hypothesis with fewer than a
 /// quarter of its samples inside (or valid == 0, or non-finite position) gets similarity 0 and the
@@ -37,7 +47,8 @@ namespace stereo_pf
 /// intensity_bins (4, 1..64) with product <= 256, achromatic_saturation (0.1, 0..1),
 /// achromatic_intensity (0.08, 0..1), sigma (0.15, 0.001..10), window (11, odd 3..101),
 /// window_scale (0.7, 0.1..3), samples (11, 3..31), min_radius (2 px, 0.5..100),
-/// target_margin (0.15, 0..0.45). The binning is structural (a learned target is tied to it) and is read
+/// target_margin (0.15, 0..0.45), surround_scale (1.25; 0 = off, else 1..4), surround_samples (32, 4..256),
+/// surround_weight (1.0, 0..10). The binning is structural (a learned target is tied to it) and is read
 /// at initialisation only; reconfigure() re-reads the others.
 class ColourHSI : public ObservationModel
 {
@@ -54,6 +65,8 @@ public:
   void evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
                 Eigen::Ref<Eigen::VectorXd> similarity) override;
   /// Write a map named name() holding the binning and the target histogram (nothing without a target).
+  /// Back-projection of the target histogram: q[bin] / max q per pixel (CV_8UC1), once per frame per view.
+  bool targetMap(FeatureCache& cache, View view, cv::Mat& map) override;
   void saveTarget(cv::FileStorage& fs) const override;
   /// Read a target written by saveTarget. `node` is either that map itself or a map containing it under
   /// name(). False with `error` set when absent, malformed or learned with a different binning.
@@ -86,6 +99,9 @@ private:
     int samples = 11;
     double min_radius = 2.0;
     double target_margin = 0.15;
+    double surround_scale = 1.25;
+    int surround_samples = 32;
+    double surround_weight = 1.0;
   };
   Tunables readTunables() const;
   void applyTunables(const Tunables& t);
@@ -100,6 +116,10 @@ private:
   std::vector<float> grid_;   // sample offsets in [-1, 1], `samples` entries
   std::vector<int> cols_, rows_;
   SparseHistogram candidate_;
+  SparseHistogram ring_;          // the surround ring's histogram
+  std::vector<float> ring_cos_, ring_sin_;  // unit circle, `surround_samples` points
+  float learned_radius_ = 0.0f;
+  long target_version_ = 0;       // bumped when the target changes: part of the back-projection cache key   // half the smaller side of the learning ROI: the 2D hypotheses' ring
 };
 
 }  // namespace stereo_pf

@@ -15,6 +15,9 @@ public:
   /// (`init_depth`: uniform in volume, the default, in depth, or in disparity).
   void samplePrior(const StereoGeometry& geometry, int set, ParticleSet& particles, int begin, int end,
                    Rng& rng) const override;
+  /// Triangulate the pair; false outside [z_min, z_max].
+  bool seedFromStereo(const StereoGeometry& geometry, int set, ParticleSet& particles, int row, const Pixel& left,
+                      const Pixel& right) const override;
   /// Centre and apparent radius of the sphere in hyp.view; valid when in front of the camera and
   /// inside the image.
   void project(const StereoGeometry& geometry, int set, const ParticleSet& particles,
@@ -30,7 +33,7 @@ protected:
   /// Read the shared parameters: noise, z_min, z_max, init_depth, object_radius.
   void readCommonParameters();
   /// Random-walk noise on x, y, z per frame (thesis eq. 5.12-5.14, the same alpha on every axis), m.
-  double noise_ = 0.01;
+  double noise_ = 0.04;
   double z_min_ = 0.3;          ///< nearest depth of the prior, m
   double z_max_ = 3.0;          ///< farthest depth of the prior, m
   std::string init_depth_ = "volume";

@@ -16,7 +16,7 @@ namespace stereo_pf
 /// its own image only; couple() multiplies each set's weights by the eq. 5.15 agreement with the other set.
 ///
 /// Parameters (in the model's namespace; ranges are checked, a bad value throws ParameterError naming it):
-///  - `noise` (px, default 6, [0, 1000]): alpha of eq. 5.12-5.13, std of the random walk per frame on u and v.
+///  - `noise` (px, default 18, [0, 1000]: a 30 fps pendulum moves up to ~20 px per frame): alpha of eq. 5.12-5.13, std of the random walk per frame on u and v.
 ///    It is per frame, not per second: predict() ignores dt, as the thesis does.
 ///  - `epipolar_sigma` (px, default 2, [0.5, 100]): sigma of the Gaussian across rows.
 ///  - `max_disparity` (px, 0 or [1, 1e5]): d_max of the vergence window. When absent or 0 it is derived from
@@ -45,6 +45,9 @@ public:
                    Rng& rng) const override;
   /// Gaussian random walk with std `noise` per frame on u and v (dt is ignored, see the class comment).
   void predict(int set, double dt, ParticleSet& particles, Rng& rng) const override;
+  /// Left set: the left pixel; right set: the right pixel (false for a non-positive disparity).
+  bool seedFromStereo(const StereoGeometry& geometry, int set, ParticleSet& particles, int row, const Pixel& left,
+                      const Pixel& right) const override;
   /// The particle itself is the hypothesis; radius = `radius`; valid = inside the image. A view other than
   /// the set's own (a caller error) yields hypotheses that are all invalid.
   void project(const StereoGeometry& geometry, int set, const ParticleSet& particles,
@@ -81,7 +84,7 @@ private:
   /// Throws std::out_of_range unless set is 0 or 1.
   void checkSet(int set) const;
 
-  double noise_ = 6.0;               ///< `noise`, px per frame
+  double noise_ = 18.0;              ///< `noise`, px per frame
   double epipolar_sigma_ = 2.0;      ///< `epipolar_sigma`, px
   double max_disparity_ = 0.0;       ///< `max_disparity`, px; 0: derive from min_depth_ and the geometry
   double min_depth_ = 0.3;           ///< `min_depth`, m

@@ -1,0 +1,122 @@
+// The circle-contour observation model (thesis 5.2, eq. 5.8-5.11), pluginlib class stereo_pf/ShapeCircle.
+// Declared here so tests can construct it directly; defined and exported in
+// plugins/observation/shape_circle.cpp.
+#pragma once
+
+#include <cstddef>
+#include <string>
+#include <vector>
+
+#include "stereo_pf/observation_model.h"
+
+namespace stereo_pf
+{
+/// Shape likelihood: does the image show a circular contour of the hypothesis's radius around its centre?
+///
+/// K = `lines` measurement lines cross the circle of radius r around the hypothesis (u, v) at angles
+/// theta_k = 2 pi k / K, each along the normal through the contour point (u + r cos theta_k,
+/// v + r sin theta_k) (eq. 5.8-5.9) and `line_half_length` L pixels to either side of it. The 1-D edge
+/// detector along a line is the directional derivative of the grey image, |Sx cos theta_k + Sy sin theta_k|,
+/// read from the FeatureCache's Sobel images; its peaks are local maxima of at least `edge_threshold`
+/// (Sobel units: a step of s grey levels gives about 4 s), located to a fraction of a pixel by a parabola
+/// through the three samples around them. Line k then gives (eq. 5.10)
+///   p_k = q0 U + (1 - q0) sum_i w_i N(d_i; 0, sigma),
+/// with d_i the distance of peak i from the contour point along the line, w_i its strength normalised over
+/// the line's peaks, U the uniform density over the line and q0 (`q0`) the prior that no peak is the
+/// contour; lines are independent, p = prod_k p_k (5.11). The log-likelihood written is
+/// sum_k log(p_k / (q0 U)): the constant is dropped so that a line without any peak (q0 -> 1: nothing
+/// but clutter) and a line that leaves the image both contribute exactly 0 — no information, never a
+/// reward for looking outside the image. It is therefore >= 0 and 0 means "no contour evidence".
+/// The product is formed in double (each factor is bounded) and logged once per hypothesis.
+///
+/// Similarity: the mean over the lines inside the image of max_i exp(-d_i^2 / (2 (2 sigma)^2)), i.e. the
+/// (smoothed) fraction of lines with a peak within about 2 sigma of the contour.
+///
+/// Radius: 3D hypotheses (radius > 0) use their apparent radius, at least `min_radius`. 2D hypotheses
+/// (radius <= 0, stereo-constraints sets) use the parameter `radius` when > 0, otherwise the radius learned
+/// by learnTarget(): half the smaller side of the region of interest.
+///
+/// Invalid hypotheses (valid == 0, non-finite position, no usable radius, or fewer than half of the lines
+/// inside the image) get log-likelihood 0 and similarity 0.
+///
+/// Cost: per hypothesis K (2L + 3) reads of the two derivative images at precomputed pixel offsets (the
+/// sample pattern of a line is fixed; only its start moves), no transcendental function except one log;
+/// the Gaussian is tabulated. Per image: nothing beyond the cache's Sobel derivatives (shared with
+/// TextureEdge). Not thread-safe (scratch buffers are members).
+///
+/// Parameters (in the plugin's namespace, all re-read by reconfigure()): lines (16, 3..256),
+/// line_half_length (5 px, 1..50), sigma (1.5 px, 0.1..50), q0 (0.1, 0.001..0.999), edge_threshold
+/// (40, 0..5000), radius (0 = learn from the region of interest; px, 0..2000), min_radius (3 px, 0.5..1000).
+class ShapeCircle : public ObservationModel
+{
+public:
+  ShapeCircle() = default;
+
+  /// Learn the radius for 2D hypotheses: half the smaller side of `roi` clipped to the image. False with
+  /// `error` set when the region is empty or outside the image.
+  bool learnTarget(FeatureCache& cache, View view, const cv::Rect& roi, std::string& error) override;
+  /// True once a radius has been learned or loaded, or when the `radius` parameter is > 0.
+  bool hasTarget() const override { return learned_radius_ > 0.0 || tunables_.radius > 0.0; }
+  /// Log-likelihood and similarity of every hypothesis (see the class comment).
+  void evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
+                Eigen::Ref<Eigen::VectorXd> similarity) override;
+  /// Write a map named name() holding the learned radius (nothing when none was learned).
+  void saveTarget(cv::FileStorage& fs) const override;
+  /// Read a radius written by saveTarget. `node` is either that map itself or a map containing it under
+  /// name(). When it is absent, succeeds only if the `radius` parameter is > 0 (nothing to load).
+  bool loadTarget(const cv::FileNode& node, std::string& error) override;
+  /// Re-read the common parameters and every shape parameter; on a bad value throws ParameterError and
+  /// keeps the previous settings.
+  void reconfigure() override;
+
+  /// Radius used for 2D hypotheses: the `radius` parameter when > 0, else the learned radius (0 if none).
+  double radius2D() const { return tunables_.radius > 0.0 ? tunables_.radius : learned_radius_; }
+  /// The radius learned from the region of interest (0 before learning).
+  double learnedRadius() const { return learned_radius_; }
+  /// Number of measurement lines K.
+  int lines() const { return tunables_.lines; }
+
+protected:
+  /// Read and validate every parameter and build the line geometry.
+  void onInitialize() override;
+
+private:
+  struct Tunables
+  {
+    int lines = 16;
+    int line_half_length = 5;
+    double sigma = 1.5;
+    double q0 = 0.1;
+    double edge_threshold = 40.0;
+    double radius = 0.0;
+    double min_radius = 3.0;
+  };
+  /// Geometry of one measurement line (independent of the hypothesis).
+  struct Line
+  {
+    float c = 1.0f;        // cos theta_k
+    float s = 0.0f;        // sin theta_k
+    float spacing = 1.0f;  // distance along the line between consecutive samples, px
+    double gain = 1.0;     // (1 - q0) / (q0 U): weight of the Gaussian term relative to the clutter term
+    int dx_min = 0, dx_max = 0, dy_min = 0, dy_max = 0;  // extent of the sample offsets, px
+  };
+  Tunables readTunables() const;
+  void applyTunables(const Tunables& t);
+  /// Recompute offsets_ for images with `stride` elements per row.
+  void buildOffsets(size_t stride);
+
+  Tunables tunables_;
+  double learned_radius_ = 0.0;
+  int samples_per_line_ = 0;            // 2 L + 3: L each side, the contour point, one guard sample each end
+  std::vector<Line> lines_;
+  std::vector<int> dx_, dy_;            // [k * samples_per_line_ + j]: pixel offset of sample j of line k
+  std::vector<float> projection_;       // the same offset projected on the line's direction, px
+  std::vector<std::ptrdiff_t> offsets_;  // the same as element offsets dy * stride + dx
+  size_t offsets_stride_ = 0;           // stride offsets_ was built for (0: not built)
+  float lut_scale_ = 1.0f;              // table entries per pixel of distance
+  std::vector<float> gauss_lut_;        // N(d; 0, sigma) by quantised |d|
+  std::vector<float> similarity_lut_;   // exp(-d^2 / (2 (2 sigma)^2)) by quantised |d|
+  std::vector<float> profile_;          // scratch: the derivative profile of one line
+};
+
+}  // namespace stereo_pf

@@ -1,0 +1,158 @@
+// The edge-texture observation model (thesis ch. 4.2, eq. 4.1, 5.6-5.7), pluginlib class
+// stereo_pf/TextureEdge. Declared here so tests can construct it directly; defined and exported in
+// plugins/observation/texture_edge.cpp.
+#pragma once
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "stereo_pf/core/histogram.h"
+#include "stereo_pf/observation_model.h"
+
+namespace stereo_pf
+{
+/// How edge pixels are put into histogram bins (thesis 4.2). Bin 0 always holds the pixels that are not
+/// edges (|S| = sqrt(Sx^2 + Sy^2) < tau, eq. 4.1), so a flat region has a valid histogram (all in bin 0)
+/// and the edge density is part of the texture. Structural: a learned target is tied to these settings.
+struct EdgeBinning
+{
+  /// What the edge bins count.
+  enum class Mode
+  {
+    Intensity,   ///< edge intensity: `intensity_bins` equal slices of |S| in [tau, max_magnitude]
+    Orientation  ///< the thesis's 3-bin variant: horizontal, vertical and diagonal edges
+  };
+  /// Orientation-mode bin indices.
+  enum OrientationBin
+  {
+    kNoEdge = 0,      ///< |S| < tau (both modes)
+    kHorizontal = 1,  ///< edge line within 22.5 deg of horizontal (|Sy| dominates)
+    kVertical = 2,    ///< edge line within 22.5 deg of vertical (|Sx| dominates)
+    kDiagonal = 3     ///< any other edge
+  };
+
+  /// Largest number of edge-intensity bins.
+  static constexpr int kMaxIntensityBins = 64;
+
+  Mode mode = Mode::Intensity;  ///< what the edge bins count
+  int intensity_bins = 8;       ///< Intensity mode: number of edge-intensity bins (1..kMaxIntensityBins)
+  double tau = 24.0;            ///< edge threshold on |S| in Sobel units (a step of s grey levels gives 4 s)
+  double max_magnitude = 400.0; ///< Intensity mode: |S| at and above which an edge falls in the top bin
+
+  /// Total number of bins: 1 + intensity_bins (Intensity) or 1 + 3 (Orientation).
+  int bins() const { return 1 + (mode == Mode::Intensity ? intensity_bins : 3); }
+  /// Throws std::invalid_argument when a setting is out of range (bins, tau < 0, max_magnitude <= tau).
+  void validate() const;
+  /// Compact text naming every setting, e.g. "intensity/8/t24/m400" (cache keys, messages, saved targets).
+  std::string describe() const;
+  /// True when both binnings put every gradient in the same bin.
+  bool sameAs(const EdgeBinning& other) const;
+  /// "intensity" or "orientation".
+  static std::string toString(Mode mode);
+};
+
+/// Puts Sobel derivatives into EdgeBinning bins.
+class EdgeBinner
+{
+public:
+  /// Validates `binning` (std::invalid_argument when invalid).
+  explicit EdgeBinner(const EdgeBinning& binning = EdgeBinning());
+  /// The settings in force.
+  const EdgeBinning& binning() const { return binning_; }
+  /// Bin of one derivative pair (Sx, Sy).
+  int bin(float sx, float sy) const;
+  /// Fill `bins` (CV_8UC1, same size; reused when it fits) with the bin of every pixel, from the CV_32F
+  /// derivative images `sx`, `sy` and their magnitude `magnitude` (FeatureCache::gradientX(),
+  /// gradientY(), gradientMagnitude()). Same result as bin() on every pixel, with whole-image vector
+  /// operations. Throws std::invalid_argument for other types or mismatched sizes.
+  void binImage(const cv::Mat& sx, const cv::Mat& sy, const cv::Mat& magnitude, cv::Mat& bins) const;
+
+private:
+  EdgeBinning binning_;
+  float step_ = 1.0f;  // width of one edge-intensity bin, Sobel units
+};
+
+/// Texture likelihood: the edge histogram (EdgeBinning) of a window around each hypothesis is compared with
+/// the learned target histogram by the Bhattacharyya coefficient rho, giving log-likelihood
+/// -(1 - rho) / (2 sigma^2) and similarity rho, exactly as ColourHSI does for colour (eq. 5.6-5.7).
+///
+/// Windows as in ColourHSI: 2D hypotheses (radius <= 0, stereo-constraints sets) use the fixed
+/// `window` x `window` square; 3D hypotheses a square of half-size `window_scale` * max(radius,
+/// `min_radius`); both sampled on a `samples` x `samples` grid (constant cost per hypothesis). Samples
+/// outside the image are skipped; fewer than a quarter inside (or valid == 0, or a non-finite position)
+/// gives similarity 0 and the log-likelihood of rho = 0.
+///
+/// Per-pixel work is shared: the Sobel derivatives and magnitude (eq. 4.1) come from the FeatureCache
+/// (FeatureCache::gradientX() etc., shared with ShapeCircle), and the edge-bin image of each view is
+/// computed from them once per frame (cache key "edge_bins/<binning>"); each hypothesis only reads bin
+/// indices. Not thread-safe (scratch buffers are members).
+///
+/// Parameters (in the plugin's namespace): mode ("intensity" or "orientation"), bins (8, 1..64: edge-
+/// intensity bins), tau (24, 0..4000: edge threshold on |S|), max_magnitude (400, > tau, ..5000),
+/// sigma (0.15, 0.001..10), window (11, odd 3..101), window_scale (0.7, 0.1..3), samples (11, 3..31),
+/// min_radius (2 px, 0.5..100), target_margin (0.15, 0..0.45). mode, bins, tau and max_magnitude are the
+/// binning (a learned target is tied to it) and are read at initialisation only; reconfigure() re-reads
+/// the others.
+class TextureEdge : public ObservationModel
+{
+public:
+  TextureEdge() = default;
+
+  /// Learn the target histogram from `roi` of `view`, shrunk by `target_margin` on each side (so that a
+  /// ball's box gives the texture inside the ball, the same square a 3D hypothesis samples). False with
+  /// `error` set when the region is empty, outside the image or too small.
+  bool learnTarget(FeatureCache& cache, View view, const cv::Rect& roi, std::string& error) override;
+  /// True once a target has been learned or loaded.
+  bool hasTarget() const override { return target_.valid(); }
+  /// Log-likelihood and similarity of every hypothesis (see the class comment). Without a target every
+  /// hypothesis is treated as invalid.
+  void evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
+                Eigen::Ref<Eigen::VectorXd> similarity) override;
+  /// Write a map named name() holding the binning and the target histogram (nothing without a target).
+  void saveTarget(cv::FileStorage& fs) const override;
+  /// Read a target written by saveTarget. `node` is either that map itself or a map containing it under
+  /// name(). False with `error` set when absent, malformed or learned with a different binning.
+  bool loadTarget(const cv::FileNode& node, std::string& error) override;
+  /// Re-read the common parameters and the tunables (everything but the binning); on a bad value throws
+  /// ParameterError and keeps the previous settings.
+  void reconfigure() override;
+
+  /// The learned target histogram (invalid before learning).
+  const TargetHistogram& target() const { return target_; }
+  /// The binning in force (the defaults before initialize()).
+  const EdgeBinning& binning() const { return binning_; }
+  /// The per-view edge-bin image of the cache's current frame (CV_8UC1), computed on first use.
+  const cv::Mat& binImage(FeatureCache& cache, View view);
+
+protected:
+  /// Read and validate every parameter, build the bin table and the scratch buffers.
+  void onInitialize() override;
+
+private:
+  /// The tunables (everything that does not change the meaning of a bin).
+  struct Tunables
+  {
+    double sigma = 0.15;
+    int window = 11;
+    double window_scale = 0.7;
+    int samples = 11;
+    double min_radius = 2.0;
+    double target_margin = 0.15;
+  };
+  Tunables readTunables() const;
+  void applyTunables(const Tunables& t);
+
+  EdgeBinning binning_;
+  std::unique_ptr<const EdgeBinner> binner_;
+  std::string cache_key_;  // FeatureCache key of the bin image, encodes the binning
+  Tunables tunables_;
+  TargetHistogram target_;
+  double invalid_log_likelihood_ = 0.0;  // log-likelihood of rho = 0
+  // scratch, sized in applyTunables: no allocation per hypothesis
+  std::vector<float> grid_;
+  std::vector<int> cols_, rows_;
+  SparseHistogram candidate_;
+};
+
+}  // namespace stereo_pf
