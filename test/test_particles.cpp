@@ -155,6 +155,22 @@ TEST(Estimators, DensityAgreesWithBruteForce)
       best_score = s, best = i;
   }
   EXPECT_EQ(densityMode(pts, w, radius, eps), best);
+  // Scoring a subset of candidates picks the best among them.
+  int best_even = -1;
+  double best_even_score = -1.0;
+  for (int i = 0; i < 400; i += 2)
+  {
+    double s = 0.0;
+    for (int j = 0; j < 400; ++j)
+    {
+      const double d2 = (pts.row(i) - pts.row(j)).squaredNorm();
+      if (j != i && d2 <= radius * radius)
+        s += w[j] / (d2 + eps * eps);
+    }
+    if (s > best_even_score)
+      best_even_score = s, best_even = i;
+  }
+  EXPECT_EQ(densityMode(pts, w, radius, eps, 200), best_even);
 }
 
 TEST(Estimators, ParsesNamesAndRejectsUnknown)

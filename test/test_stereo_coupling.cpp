@@ -394,7 +394,7 @@ TEST(StereoConstraints, ShapeAndParameters)
   ASSERT_EQ(m.views(0).size(), 1u);
   EXPECT_EQ(m.views(0)[0], stereo_pf::View::Left);
   EXPECT_EQ(m.views(1)[0], stereo_pf::View::Right);
-  EXPECT_DOUBLE_EQ(m.noise(), 6.0);
+  EXPECT_DOUBLE_EQ(m.noise(), 18.0);
   EXPECT_FALSE(m.naiveCoupling());
   const CouplingParams c = m.couplingParams(kGeometry);
   EXPECT_DOUBLE_EQ(c.max_disparity, 525.0 * 0.09 / 0.3);  // from min_depth 0.3 m
@@ -465,8 +465,8 @@ TEST(StereoConstraints, PriorPredictProject)
     const Eigen::ArrayXd c = q.states.col(k).array();
     const double mean = c.mean();
     const double sd = std::sqrt((c - mean).square().sum() / (n - 1));
-    EXPECT_NEAR(sd, 6.0, 0.6) << "coordinate " << k;
-    EXPECT_NEAR(mean, k == 0 ? 320.0 : 240.0, 0.3);
+    EXPECT_NEAR(sd, m.noise(), 0.1 * m.noise()) << "coordinate " << k;
+    EXPECT_NEAR(mean, k == 0 ? 320.0 : 240.0, 4.0 * m.noise() / std::sqrt(static_cast<double>(n)));  // 4 standard errors
   }
 
   ParticleSet h;

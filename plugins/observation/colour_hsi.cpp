@@ -78,8 +78,9 @@ ColourHSI::Tunables ColourHSI::readTunables() const
 void ColourHSI::applyTunables(const Tunables& t)
 {
   tunables_ = t;
-  // rho = 0 and a ring that looks entirely like the target: the worst a hypothesis can score.
-  invalid_log_likelihood_ = -(1.0 + (t.surround_scale > 0.0 ? t.surround_weight : 0.0)) / (2.0 * t.sigma * t.sigma);
+  // An unobservable hypothesis scores like plain background (rho = 0, nothing of the target around it):
+  // no evidence either way, rather than being punished below the background.
+  invalid_log_likelihood_ = bhattacharyyaLogLikelihood(0.0, t.sigma);
   // A fixed grid in [-1, 1]^2, scaled by the window half-size per hypothesis: constant cost per hypothesis.
   grid_.resize(t.samples);
   for (int k = 0; k < t.samples; ++k)
@@ -275,6 +276,7 @@ void ColourHSI::saveTarget(cv::FileStorage& fs) const
   fs << "hue_bins" << b.hue_bins << "saturation_bins" << b.saturation_bins << "intensity_bins" << b.intensity_bins;
   fs << "achromatic_saturation" << b.achromatic_saturation << "achromatic_intensity" << b.achromatic_intensity;
   fs << "histogram" << target_.probabilities();
+  fs << "learned_radius" << static_cast<double>(learned_radius_);  // the 2D hypotheses' surround ring
   fs << "}";
 }
 
@@ -332,6 +334,10 @@ bool ColourHSI::loadTarget(const cv::FileNode& node, std::string& error)
     }
     target_ = std::move(t);
     ++target_version_;
+    // Older files have no radius: then 2D hypotheses are judged without the surround ring.
+    learned_radius_ = m["learned_radius"].isReal() || m["learned_radius"].isInt() ?
+                          static_cast<float>(static_cast<double>(m["learned_radius"])) :
+                          0.0f;
   }
   catch (const std::invalid_argument& e)
   {

@@ -45,14 +45,25 @@ Eigen::MatrixXd weightedCovariance(const Eigen::MatrixXd& points, const Eigen::V
   return centred.transpose() * weights.asDiagonal() * centred;
 }
 
-int sumInverseDistancesMode(const Eigen::MatrixXd& points, const Eigen::VectorXd& weights, double eps)
+namespace
+{
+// Stride between scored candidates: every particle when max_candidates is 0 or not smaller than n.
+int candidateStride(int n, int max_candidates)
+{
+  return max_candidates > 0 && n > max_candidates ? (n + max_candidates - 1) / max_candidates : 1;
+}
+}  // namespace
+
+int sumInverseDistancesMode(const Eigen::MatrixXd& points, const Eigen::VectorXd& weights, double eps,
+                            int max_candidates)
 {
   const int n = static_cast<int>(points.rows());
   const int d = static_cast<int>(points.cols());
   const double eps2 = eps * eps;
+  const int stride = candidateStride(n, max_candidates);
   int best = 0;
   double best_score = -1.0;
-  for (int i = 0; i < n; ++i)
+  for (int i = 0; i < n; i += stride)
   {
     if (!(weights[i] > 0.0))
       continue;
@@ -78,7 +89,8 @@ int sumInverseDistancesMode(const Eigen::MatrixXd& points, const Eigen::VectorXd
   return best;
 }
 
-int densityMode(const Eigen::MatrixXd& points, const Eigen::VectorXd& weights, double radius, double eps)
+int densityMode(const Eigen::MatrixXd& points, const Eigen::VectorXd& weights, double radius, double eps,
+                int max_candidates)
 {
   const int n = static_cast<int>(points.rows());
   const int d = static_cast<int>(points.cols());
@@ -93,9 +105,10 @@ int densityMode(const Eigen::MatrixXd& points, const Eigen::VectorXd& weights, d
     if (weights[i] > 0.0)
       grid[Cell(cellOf(i, 0), hashed > 1 ? cellOf(i, 1) : 0, hashed > 2 ? cellOf(i, 2) : 0)].push_back(i);
 
+  const int stride = candidateStride(n, max_candidates);
   int best = 0;
   double best_score = -1.0;
-  for (int i = 0; i < n; ++i)
+  for (int i = 0; i < n; i += stride)
   {
     if (!(weights[i] > 0.0))
       continue;
@@ -137,9 +150,9 @@ Eigen::VectorXd estimate(const Eigen::MatrixXd& points, const Eigen::VectorXd& w
   switch (estimator)
   {
     case Estimator::SumInverseDistances:
-      return points.row(sumInverseDistancesMode(points, weights, eps)).transpose();
+      return points.row(sumInverseDistancesMode(points, weights, eps, kModeCandidates)).transpose();
     case Estimator::Density:
-      return points.row(densityMode(points, weights, density_radius, eps)).transpose();
+      return points.row(densityMode(points, weights, density_radius, eps, kModeCandidates)).transpose();
     case Estimator::Mean:
       break;
   }

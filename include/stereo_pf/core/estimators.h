@@ -27,15 +27,24 @@ Eigen::VectorXd weightedMean(const Eigen::MatrixXd& points, const Eigen::VectorX
 Eigen::MatrixXd weightedCovariance(const Eigen::MatrixXd& points, const Eigen::VectorXd& weights,
                                    const Eigen::VectorXd& mean);
 
-/// Index of the particle with the largest sum over the others of w_j / (d_ij^2 + eps^2). O(N^2).
+/// Index of the particle with the largest sum over the others of w_j / (d_ij^2 + eps^2).
 /// Particles of zero weight neither score nor contribute. `eps` keeps coincident particles finite.
-int sumInverseDistancesMode(const Eigen::MatrixXd& points, const Eigen::VectorXd& weights, double eps);
+/// With max_candidates > 0 only that many evenly spaced particles are scored (against all others), so the
+/// cost is O(max_candidates * N) instead of O(N^2); 0 scores every particle.
+int sumInverseDistancesMode(const Eigen::MatrixXd& points, const Eigen::VectorXd& weights, double eps,
+                            int max_candidates = 0);
 
 /// As sumInverseDistancesMode but only over neighbours within `radius` (grid hashing on the first three
-/// coordinates, so the cost grows with the neighbours, not N^2). Returns the argmax index.
-int densityMode(const Eigen::MatrixXd& points, const Eigen::VectorXd& weights, double radius, double eps);
+/// coordinates). When the cloud is tighter than the radius every particle is a neighbour, so `max_candidates`
+/// bounds the cost as for sumInverseDistancesMode. Returns the argmax index.
+int densityMode(const Eigen::MatrixXd& points, const Eigen::VectorXd& weights, double radius, double eps,
+                int max_candidates = 0);
 
-/// Estimate of `points` (N x D) with the chosen estimator; the modes return the winning particle's row.
+/// How many candidates estimate() scores for the two modes (the cost stays O(256 N) for any N).
+constexpr int kModeCandidates = 256;
+
+/// Estimate of `points` (N x D) with the chosen estimator; the modes return the winning particle's row
+/// (scored over kModeCandidates evenly spaced candidates).
 Eigen::VectorXd estimate(const Eigen::MatrixXd& points, const Eigen::VectorXd& weights, Estimator estimator,
                          double density_radius, double eps);
 

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -15,11 +16,12 @@ namespace stereo_pf
 ///
 /// K = `lines` measurement lines cross the circle of radius r around the hypothesis (u, v) at angles
 /// theta_k = 2 pi k / K, each along the normal through the contour point (u + r cos theta_k,
-/// v + r sin theta_k) (eq. 5.8-5.9) and `line_half_length` L pixels to either side of it. The 1-D edge
-/// detector along a line is the directional derivative of the grey image, |Sx cos theta_k + Sy sin theta_k|,
-/// read from the FeatureCache's Sobel images; its peaks are local maxima of at least `edge_threshold`
-/// (Sobel units: a step of s grey levels gives about 4 s), located to a fraction of a pixel by a parabola
-/// through the three samples around them. Line k then gives (eq. 5.10)
+/// v + r sin theta_k) (eq. 5.8-5.9) and `line_half_length` L pixels to either side of it, sampled one pixel
+/// per step along its dominant axis (a digital line). The 1-D edge detector along a line is the central
+/// difference |I(j + 1) - I(j - 1)| of the 8-bit grey image I along it (the derivative along the line); its
+/// peaks are local maxima of at least `edge_threshold` grey levels within L of the contour point, located
+/// to a fraction of a pixel by a parabola through the three derivatives around them. Line k then gives
+/// (eq. 5.10)
 ///   p_k = q0 U + (1 - q0) sum_i w_i N(d_i; 0, sigma),
 /// with d_i the distance of peak i from the contour point along the line, w_i its strength normalised over
 /// the line's peaks, U the uniform density over the line and q0 (`q0`) the prior that no peak is the
@@ -39,14 +41,14 @@ namespace stereo_pf
 /// Invalid hypotheses (valid == 0, non-finite position, no usable radius, or fewer than half of the lines
 /// inside the image) get log-likelihood 0 and similarity 0.
 ///
-/// Cost: per hypothesis K (2L + 3) reads of the two derivative images at precomputed pixel offsets (the
-/// sample pattern of a line is fixed; only its start moves), no transcendental function except one log;
-/// the Gaussian is tabulated. Per image: nothing beyond the cache's Sobel derivatives (shared with
-/// TextureEdge). Not thread-safe (scratch buffers are members).
+/// Cost: per hypothesis K (2L + 5) byte reads of the grey image at precomputed offsets (the sample pattern
+/// of a line is fixed; only its start moves), integer differences, and no transcendental function except
+/// one log (the Gaussian is tabulated). Per image: only the cache's grey image (shared with every model).
+/// Not thread-safe (scratch buffers are members).
 ///
 /// Parameters (in the plugin's namespace, all re-read by reconfigure()): lines (16, 3..256),
-/// line_half_length (5 px, 1..50), sigma (1.5 px, 0.1..50), q0 (0.1, 0.001..0.999), edge_threshold
-/// (40, 0..5000), radius (0 = learn from the region of interest; px, 0..2000), min_radius (3 px, 0.5..1000).
+/// line_half_length (5 px, 1..25), sigma (1.5 px, 0.1..50), q0 (0.1, 0.001..0.999), edge_threshold
+/// (10 grey levels, 0..255), radius (0 = learn from the region of interest; px, 0..2000), min_radius (3 px, 0.5..1000).
 class ShapeCircle : public ObservationModel
 {
 public:
@@ -87,7 +89,7 @@ private:
     int line_half_length = 5;
     double sigma = 1.5;
     double q0 = 0.1;
-    double edge_threshold = 40.0;
+    double edge_threshold = 10.0;
     double radius = 0.0;
     double min_radius = 3.0;
   };
@@ -107,7 +109,7 @@ private:
 
   Tunables tunables_;
   double learned_radius_ = 0.0;
-  int samples_per_line_ = 0;            // 2 L + 3: L each side, the contour point, one guard sample each end
+  int samples_per_line_ = 0;            // 2 L + 5: L each side of the contour point, two guards each end
   std::vector<Line> lines_;
   std::vector<int> dx_, dy_;            // [k * samples_per_line_ + j]: pixel offset of sample j of line k
   std::vector<float> projection_;       // the same offset projected on the line's direction, px
@@ -116,7 +118,8 @@ private:
   float lut_scale_ = 1.0f;              // table entries per pixel of distance
   std::vector<float> gauss_lut_;        // N(d; 0, sigma) by quantised |d|
   std::vector<float> similarity_lut_;   // exp(-d^2 / (2 (2 sigma)^2)) by quantised |d|
-  std::vector<float> profile_;          // scratch: the derivative profile of one line
+  std::vector<uint8_t> intensity_;      // scratch: grey levels along one line (padded for vector loads)
+  std::vector<uint8_t> derivative_;     // scratch: their central differences
 };
 
 }  // namespace stereo_pf

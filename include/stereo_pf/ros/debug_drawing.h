@@ -1,0 +1,27 @@
+// Debug images: the particles (coloured by weight) and the estimate drawn over one rectified image.
+#pragma once
+
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "stereo_pf/core/engine.h"
+
+namespace stereo_pf
+{
+/// Draws into a BGR copy of the frame's image; keeps its scratch buffers between frames.
+class DebugDrawing
+{
+public:
+  /// Draw `view` of `frame` with the engine's current particles and `result` into `out` (CV_8UC3, a copy:
+  /// the frame's image is never written). Particles are projected with the state model; copies made by
+  /// resampling are merged so the colour shows the weight before resampling (blue low, red high).
+  void draw(const StereoFrame& frame, View view, const FilterEngine& engine, const FrameResult& result, cv::Mat& out);
+
+private:
+  ImageHypotheses hyp_;
+  std::vector<int> order_;
+  std::vector<float> merged_u_, merged_v_, merged_w_, merged_r_;
+};
+
+}  // namespace stereo_pf

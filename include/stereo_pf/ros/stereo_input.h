@@ -1,0 +1,72 @@
+// Turning four synchronised messages (left/right image + camera_info) into a validated, rectified
+// StereoFrame, or into a drop reason. ROS messages in, engine types out; no node handle, so it is
+// unit-testable and shared by the nodelet and tests.
+#pragma once
+
+#include <array>
+#include <memory>
+#include <string>
+
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+
+#include "stereo_pf/core/stereo_frame.h"
+#include "stereo_pf/ros/conversions.h"
+
+namespace stereo_pf
+{
+/// Why a frame was dropped; each reason has its own counter in the diagnostics.
+enum class DropReason : int
+{
+  BadImage = 0,     ///< unsupported encoding, truncated data, inconsistent step
+  SizeMismatch,     ///< left/right sizes differ, or differ from camera_info
+  BadCameraInfo,    ///< missing/zero/NaN calibration, image_geometry rejects it
+  OutOfSync,        ///< left/right stamps further apart than allowed, or a message left unpaired
+  NoTarget,         ///< nothing to track yet (no target learned or loaded)
+  ProcessingError,  ///< the engine threw
+  Count
+};
+/// Short label of a reason, e.g. "bad image" (the diagnostics key).
+const char* toString(DropReason reason);
+
+/// Options read once at start-up.
+struct StereoInputOptions
+{
+  /// Images are already rectified (stereo_image_proc's image_rect_color): use camera_info for the
+  /// geometry only, never remap the pixels.
+  bool images_rectified = false;
+  /// Largest |left stamp - right stamp| accepted, seconds (0: stamps must be identical).
+  double max_stamp_difference = 0.0;
+};
+
+class StereoInput
+{
+public:
+  explicit StereoInput(const StereoInputOptions& options = StereoInputOptions()) : options_(options) {}
+
+  /// Validate and convert one synchronised set. On success `frame` holds the rectified pair (sharing
+  /// the messages' data when no conversion or rectification is needed; otherwise this object's
+  /// buffers, valid until the next call) and true is returned. Otherwise `reason` and `why` say what is wrong.
+  bool assemble(const sensor_msgs::ImageConstPtr& left, const sensor_msgs::ImageConstPtr& right,
+                const sensor_msgs::CameraInfoConstPtr& left_info, const sensor_msgs::CameraInfoConstPtr& right_info,
+                StereoFrame& frame, DropReason& reason, std::string& why);
+
+  /// The calibration of the last good frame.
+  const StereoCalibration& calibration() const { return calibration_; }
+  /// The options.
+  const StereoInputOptions& options() const { return options_; }
+
+private:
+  StereoInputOptions options_;
+  StereoCalibration calibration_;
+  std::shared_ptr<const void> keep_[2];  ///< what the converted (unrectified) images point into
+  cv::Mat converted_[2];                 ///< BGR/mono view of each message
+  cv::Mat rectified_[2];                 ///< rectification output buffers, reused across frames
+};
+
+/// Empty when `msg` is internally consistent (non-empty, step >= width * pixel size, data.size() >=
+/// step * height), otherwise what is wrong. cv_bridge trusts these fields, so a corrupt message would
+/// otherwise read past its buffer.
+std::string checkImageMessage(const sensor_msgs::Image& msg);
+
+}  // namespace stereo_pf
