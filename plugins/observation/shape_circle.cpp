@@ -110,6 +110,10 @@ void ShapeCircle::applyTunables(const Tunables& t)
     gauss_lut_[i] = static_cast<float>(norm * std::exp(-d * d / (2.0 * t.sigma * t.sigma)));
     similarity_lut_[i] = static_cast<float>(std::exp(-d * d / (8.0 * t.sigma * t.sigma)));
   }
+  half_reciprocal_.resize(2 * 255 + 1);
+  half_reciprocal_[0] = 0.0f;  // never used: a peak has 2b - a - c >= 1
+  for (size_t x = 1; x < half_reciprocal_.size(); ++x)
+    half_reciprocal_[x] = 0.5f / static_cast<float>(x);
   // Padded so that every vector load of the last chunk stays inside (the padding's values are masked out).
   const size_t padded = static_cast<size_t>((samples_per_line_ + kLanes - 1) / kLanes) * kLanes + kLanes + 4;
   intensity_.assign(padded, 0);
@@ -118,9 +122,18 @@ void ShapeCircle::applyTunables(const Tunables& t)
 
 void ShapeCircle::buildOffsets(size_t stride)
 {
-  offsets_.resize(dx_.size());
-  for (size_t i = 0; i < dx_.size(); ++i)
-    offsets_[i] = static_cast<std::ptrdiff_t>(dy_[i]) * static_cast<std::ptrdiff_t>(stride) + dx_[i];
+  // Lines of fewer than kLanes samples are padded with offset 0 (the contour pixel, always readable), so
+  // the single-vector path can read a full vector's worth; the padding's values are masked out.
+  const int row = std::max(samples_per_line_, kLanes);
+  offsets_.assign(static_cast<size_t>(tunables_.lines) * row, 0);
+  for (int k = 0; k < tunables_.lines; ++k)
+    for (int j = 0; j < samples_per_line_; ++j)
+    {
+      const size_t i = static_cast<size_t>(k) * samples_per_line_ + j;
+      offsets_[static_cast<size_t>(k) * row + j] =
+          static_cast<std::ptrdiff_t>(dy_[i]) * static_cast<std::ptrdiff_t>(stride) + dx_[i];
+    }
+  offsets_row_ = row;
   offsets_stride_ = stride;
 }
 
@@ -189,6 +202,7 @@ void ShapeCircle::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eige
   const float lut_scale = lut_scale_;
   const float* gauss = gauss_lut_.data();
   const float* sim_lut = similarity_lut_.data();
+  const float* half_reciprocal = half_reciprocal_.data();
   uint8_t* intensity = intensity_.data();
   uint8_t* derivative = derivative_.data();
   const cv::v_uint8x16 v_threshold = cv::v_setall_u8(static_cast<uint8_t>(threshold));
@@ -226,24 +240,43 @@ void ShapeCircle::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eige
         continue;  // a line leaving the image tells nothing: factor 1
       ++inside;
       const uint8_t* base = data + static_cast<std::ptrdiff_t>(by) * static_cast<std::ptrdiff_t>(stride) + bx;
-      const std::ptrdiff_t* off = &offsets_[static_cast<size_t>(k) * m];
-      for (int j = 0; j < m; ++j)
-        intensity[j] = base[off[j]];
+      const std::ptrdiff_t* off = &offsets_[static_cast<size_t>(k) * offsets_row_];
       // The 1-D edge detector: central differences along the line, D[j] = |I[j + 1] - I[j - 1]|. Peaks
       // are local maxima at least `threshold` high within L of the contour point (samples 2 .. m - 3; the
       // outer derivatives only guard the ends: a maximum there may be a slope continuing outside the
-      // line). Both run 16 samples per vector instruction into a bit mask of peaks (the scalar version
-      // spends most of its time on these comparisons); the few peaks are then visited bit by bit.
+      // line). Both run 16 samples per vector instruction into a bit mask of peaks (done one by one they
+      // cost most of the time); the few peaks are then visited bit by bit.
       uint64_t peaks = 0;
-      for (int c = 0; c < m; c += kLanes)
-        cv::v_store(derivative + c + 1,
-                    cv::v_absdiff(cv::v_load(intensity + c + 2), cv::v_load(intensity + c)));
-      for (int c = 0; c < m; c += kLanes)
+      if (m <= kLanes)
       {
-        const cv::v_uint8x16 b = cv::v_load(derivative + c + 2);
-        const cv::v_uint8x16 is_peak = (b >= v_threshold) & (b > cv::v_load(derivative + c + 1)) &
-                                       (b >= cv::v_load(derivative + c + 3));
-        peaks |= static_cast<uint64_t>(static_cast<unsigned>(cv::v_signmask(is_peak))) << (c + 2);
+        // One vector holds the whole line. It is assembled in registers: writing the bytes to memory and
+        // reading them back as a vector would stall on store forwarding.
+        uint64_t lo = 0, hi = 0;
+        for (int j = 0; j < 8; ++j)
+          lo |= static_cast<uint64_t>(base[off[j]]) << (8 * j);
+        for (int j = 8; j < kLanes; ++j)
+          hi |= static_cast<uint64_t>(base[off[j]]) << (8 * (j - 8));
+        const cv::v_uint8x16 in = cv::v_reinterpret_as_u8(cv::v_uint64x2(lo, hi));
+        // Lane t holds D[t + 1].
+        const cv::v_uint8x16 d = cv::v_absdiff(cv::v_rotate_right<2>(in), in);
+        const cv::v_uint8x16 is_peak =
+            (d >= v_threshold) & (d > cv::v_rotate_left<1>(d)) & (d >= cv::v_rotate_right<1>(d));
+        peaks = static_cast<uint64_t>(static_cast<unsigned>(cv::v_signmask(is_peak))) << 1;
+        cv::v_store(derivative + 1, d);  // for the peaks' sub-pixel positions (read back byte by byte)
+      }
+      else
+      {
+        for (int j = 0; j < m; ++j)
+          intensity[j] = base[off[j]];
+        for (int c = 0; c < m; c += kLanes)
+          cv::v_store(derivative + c + 1, cv::v_absdiff(cv::v_load(intensity + c + 2), cv::v_load(intensity + c)));
+        for (int c = 0; c < m; c += kLanes)
+        {
+          const cv::v_uint8x16 b = cv::v_load(derivative + c + 2);
+          const cv::v_uint8x16 is_peak = (b >= v_threshold) & (b > cv::v_load(derivative + c + 1)) &
+                                         (b >= cv::v_load(derivative + c + 3));
+          peaks |= static_cast<uint64_t>(static_cast<unsigned>(cv::v_signmask(is_peak))) << (c + 2);
+        }
       }
       peaks &= peak_range;
       if (peaks == 0)
@@ -257,10 +290,9 @@ void ShapeCircle::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eige
       {
         const int j = __builtin_ctzll(peaks);
         const int a = derivative[j - 1], b = derivative[j], c = derivative[j + 1];
-        // Vertex of the parabola through the three derivatives (den < 0 at a strict maximum).
-        const int den = a - 2 * b + c;
-        const float delta =
-            den < 0 ? std::clamp(0.5f * static_cast<float>(a - c) / static_cast<float>(den), -0.5f, 0.5f) : 0.0f;
+        // Vertex of the parabola through the three derivatives: delta = (c - a) / (2 (2b - a - c)). At a
+        // peak (b > a, b >= c) the denominator is in [1, 510] and |delta| <= 1/2: a table replaces the division.
+        const float delta = static_cast<float>(c - a) * half_reciprocal[2 * b - a - c];
         // Sub-pixel position along the line, interpolated between the samples on the side of the shift.
         const float where = proj[j] + delta * (delta > 0.0f ? proj[j + 1] - proj[j] : proj[j] - proj[j - 1]);
         const float d = std::abs(e + where);

@@ -12,8 +12,8 @@ void Velocity3D::onInitialize()
 {
   readCommonParameters();
   // Velocity carries the motion, so the position jitter defaults much smaller than Position3D's walk.
-  noise_ = params().getDouble("noise", 0.003, 0.0, 10.0);
-  acceleration_noise_ = params().getDouble("acceleration_noise", 3.0, 0.0, 1000.0);
+  noise_ = params().getDouble("noise", 0.005, 0.0, 10.0);
+  acceleration_noise_ = params().getDouble("acceleration_noise", 12.0, 0.0, 1000.0);
   initial_speed_ = params().getDouble("initial_speed", 0.3, 0.0, 100.0);
   max_speed_ = params().getDouble("max_speed", 10.0, 0.01, 1000.0);
 }

@@ -6,7 +6,8 @@
 namespace stereo_pf
 {
 /// Parameters (namespace ~/<name>): as Position3D (noise is an extra position jitter per frame, default
-/// 0.003 m) plus acceleration_noise (m/s^2, 3.0), initial_speed (m/s standard deviation of the prior
+/// 0.005 m) plus acceleration_noise (m/s^2, 12: a pendulum accelerates at up to ~5 m/s^2 and the
+/// filter must also absorb the likelihood's jitter), initial_speed (m/s standard deviation of the prior
 /// velocity, 0.3), max_speed (m/s, 10: velocities are clamped to keep a diverging particle finite).
 class Velocity3D : public PointModel3D
 {
@@ -22,7 +23,7 @@ protected:
   void onInitialize() override;
 
 private:
-  double acceleration_noise_ = 3.0;
+  double acceleration_noise_ = 12.0;
   double initial_speed_ = 0.3;
   double max_speed_ = 10.0;
 };
