@@ -51,6 +51,7 @@ void StereoConstraints::onInitialize()
   min_depth_ = p.getDouble("min_depth", 0.3, 1e-3, 1e3);
   vergence_softness_ = p.getDouble("vergence_softness", 2.0, 0.5, 100.0);
   radius_ = p.getDouble("radius", 0.0, 0.0, 1e4);
+  object_radius_ = p.getDouble("object_radius", 0.035, 0.0, 10.0);
   naive_ = p.getString("coupling", "fast", { "fast", "naive" }) == "naive";
   density_radius_px_ = p.getDouble("density_radius_px", 10.0, 0.1, 1e4);
 }
@@ -114,7 +115,7 @@ void StereoConstraints::project(const StereoGeometry& geometry, int set, const P
     const Pixel px{ particles.states(i, 0), particles.states(i, 1) };
     hyp.u[i] = static_cast<float>(px.u);
     hyp.v[i] = static_cast<float>(px.v);
-    hyp.radius[i] = static_cast<float>(radius_);
+    hyp.radius[i] = static_cast<float>(radius_ > 0.0 ? radius_ : apparent_radius_);
     hyp.valid[i] = own_view && std::isfinite(px.u) && std::isfinite(px.v) && geometry.inImage(px) ? 1 : 0;
   }
 }
@@ -161,6 +162,12 @@ void StereoConstraints::couple(const StereoGeometry& geometry, std::vector<Parti
   sets[1].log_weights.array() += (right_factor_.array().max(0.0) + kFactorFloor).log();
   sets[0].normalise();
   sets[1].normalise();
+  // The depth both sets agree on sets the apparent size of the object for the next frame's hypotheses:
+  // r = fx R / z = R d / b.
+  const double disparity = sets[0].weights.dot(sets[0].states.col(0)) - sets[1].weights.dot(sets[1].states.col(0));
+  apparent_radius_ = object_radius_ > 0.0 && disparity > 0.0 ?
+                         std::clamp(object_radius_ * disparity / geometry.baseline(), 2.0, 0.5 * geometry.height()) :
+                         0.0;
 }
 
 StateEstimate StereoConstraints::estimate(const StereoGeometry& geometry, const std::vector<ParticleSet>& sets,
