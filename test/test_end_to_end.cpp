@@ -101,7 +101,7 @@ TEST(EndToEnd, UnclutteredPendulumStereoConstraints)
   {
     const auto s = track(b, "--state StereoConstraints --particles 1000 --seed " + std::to_string(seed));
     EXPECT_LE(num(s, "converged_at"), 30) << "seed " << seed;
-    EXPECT_LE(num(s, "rms_cm"), 3.5) << "seed " << seed;
+    EXPECT_LE(num(s, "rms_cm"), 3.0) << "seed " << seed;
   }
 }
 

@@ -200,6 +200,28 @@ TEST(StateModels, BadParametersAreExplained)
   EXPECT_THROW(make<Position3D>(q), ParameterError);
 }
 
+TEST(StereoConstraints, HypothesesTakeTheApparentRadiusAtTheAgreedDepth)
+{
+  Parameters p;
+  p.set("object_radius", 0.05);
+  auto m = make<StereoConstraints>(p);
+  std::vector<ParticleSet> sets(2);
+  for (auto& s : sets)
+    s.resize(50, 2);
+  ImageHypotheses h;
+  h.view = View::Left;
+  m->project(kRig, 0, sets[0], h);
+  EXPECT_EQ(h.radius[0], 0.0f);  // nothing agreed yet: the observation models' fixed window
+  // Both sets at the same row, disparity 30 px: depth f b / 30, apparent radius f R / z = R * 30 / b.
+  sets[0].states.col(0).setConstant(330.0);
+  sets[1].states.col(0).setConstant(300.0);
+  sets[0].states.col(1).setConstant(200.0);
+  sets[1].states.col(1).setConstant(200.0);
+  m->couple(kRig, sets);
+  m->project(kRig, 0, sets[0], h);
+  EXPECT_NEAR(h.radius[0], 0.05 * 30.0 / 0.09, 1e-4);
+}
+
 TEST(Engine, TracksTheRenderedPendulumFromUniformInitialisation)
 {
   const TrackRun run = track("pendulum_uncluttered.yaml", 90, 1);
