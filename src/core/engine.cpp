@@ -97,19 +97,21 @@ void FilterEngine::applyPending()
     config_ = *pending_config_;
     pending_config_.reset();
   }
-  if (pending_plugin_reconfigure_)
-  {
-    state_model_->reconfigure();
-    for (auto& m : observation_models_)
-      m->reconfigure();
-    pending_plugin_reconfigure_ = false;
-  }
   if (restart)
   {
     rng_.seed(config_.seed);
     initialised_ = false;
     state_ = TrackState::Searching;
     seen_count_ = unseen_count_ = 0;
+  }
+  // Last, and with the flag cleared first: a plugin that rejects its new parameters throws out of step()
+  // once, not on every later frame, and the restart above is not lost.
+  if (pending_plugin_reconfigure_)
+  {
+    pending_plugin_reconfigure_ = false;
+    state_model_->reconfigure();
+    for (auto& m : observation_models_)
+      m->reconfigure();
   }
 }
 

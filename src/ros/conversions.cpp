@@ -94,6 +94,14 @@ bool toEngineImage(const sensor_msgs::ImageConstPtr& msg, cv::Mat& out, std::sha
 {
   namespace enc = sensor_msgs::image_encodings;
   const std::string& e = msg->encoding;
+  // cv_bridge trusts width/height/step; a truncated message would be read past its end.
+  if (msg->width == 0 || msg->height == 0 || msg->data.size() < static_cast<size_t>(msg->step) * msg->height)
+  {
+    error = "image data is truncated or empty (" + std::to_string(msg->data.size()) + " bytes for " +
+            std::to_string(msg->width) + "x" + std::to_string(msg->height) + " with step " + std::to_string(msg->step) +
+            ")";
+    return false;
+  }
   try
   {
     cv_bridge::CvImageConstPtr cv;

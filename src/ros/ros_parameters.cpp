@@ -63,14 +63,17 @@ std::string listText(const XmlRpc::XmlRpcValue& v)
 }
 }  // namespace
 
-void mergeXmlRpc(const XmlRpc::XmlRpcValue& value, const std::string& key, Parameters& params)
+void mergeXmlRpc(const XmlRpc::XmlRpcValue& value, const std::string& key, Parameters& params,
+                 const SkipParameter& skip)
 {
+  if (skip && !key.empty() && skip(key, value))
+    return;
   XmlRpc::XmlRpcValue& v = const_cast<XmlRpc::XmlRpcValue&>(value);
   switch (v.getType())
   {
     case XmlRpc::XmlRpcValue::TypeStruct:
       for (auto it = v.begin(); it != v.end(); ++it)
-        mergeXmlRpc(it->second, join(key, it->first), params);
+        mergeXmlRpc(it->second, join(key, it->first), params, skip);
       return;
     case XmlRpc::XmlRpcValue::TypeArray:
     {
@@ -87,7 +90,7 @@ void mergeXmlRpc(const XmlRpc::XmlRpcValue& value, const std::string& key, Param
       {
         const std::string entry = join(key, std::to_string(i));
         if (v[i].getType() == XmlRpc::XmlRpcValue::TypeStruct)
-          mergeXmlRpc(v[i], entry, params);
+          mergeXmlRpc(v[i], entry, params, skip);
         else
           params.set(entry, v[i].getType() == XmlRpc::XmlRpcValue::TypeArray ? listText(v[i]) : scalarText(v[i]));
       }

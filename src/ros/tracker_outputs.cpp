@@ -168,9 +168,9 @@ visualization_msgs::MarkerArray toMarkers(const std_msgs::Header& header, const 
   }
   else
   {
-    const std_msgs::ColorRGBA state_colour = result.state == TrackState::Tracking ? colour(0.1f, 0.9f, 0.2f, 0.9f) :
-                                             result.state == TrackState::Lost     ? colour(0.9f, 0.1f, 0.1f, 0.9f) :
-                                                                                    colour(1.0f, 0.6f, 0.0f, 0.9f);
+    const std_msgs::ColorRGBA state_colour = result.state == TrackState::Tracking ? colour(0.1f, 0.9f, 0.2f, 0.3f) :
+                                             result.state == TrackState::Lost     ? colour(0.9f, 0.1f, 0.1f, 0.3f) :
+                                                                                    colour(1.0f, 0.6f, 0.0f, 0.3f);
     visualization_msgs::Marker sphere = base(header, "estimate", visualization_msgs::Marker::SPHERE);
     sphere.pose.position.x = e.position.x();
     sphere.pose.position.y = e.position.y();
@@ -199,6 +199,7 @@ visualization_msgs::MarkerArray toMarkers(const std_msgs::Header& header, const 
     text.pose.position.y -= 2.5 * options.radius;  // above the ball (y points down)
     text.scale.z = 0.04;
     text.color = state_colour;
+    text.color.a = 1.0f;
     char buf[96];
     std::snprintf(buf, sizeof(buf), "%s  z=%.2f m", toString(result.state).c_str(), e.position.z());
     text.text = buf;

@@ -1,0 +1,246 @@
+// Unit tests (no roscore) of the nodelet's building blocks: frame validation and rectification
+// (StereoInput), the parameter-server conversion (mergeXmlRpc) and the output messages.
+#include <cmath>
+
+#include <gtest/gtest.h>
+#include <sensor_msgs/image_encodings.h>
+#include <sensor_msgs/point_cloud2_iterator.h>
+
+#include "stereo_pf/ros/ros_parameters.h"
+#include "stereo_pf/ros/stereo_input.h"
+#include "stereo_pf/ros/tracker_outputs.h"
+
+namespace
+{
+using namespace stereo_pf;
+
+sensor_msgs::CameraInfoPtr info(bool right, double k1 = 0.0, int width = 64, int height = 48)
+{
+  auto c = boost::make_shared<sensor_msgs::CameraInfo>();
+  c->header.stamp = ros::Time(10.0);
+  c->header.frame_id = "cam";
+  c->width = width;
+  c->height = height;
+  c->distortion_model = "plumb_bob";
+  c->D = { k1, 0.0, 0.0, 0.0, 0.0 };
+  const double f = 50.0, cx = (width - 1) / 2.0, cy = (height - 1) / 2.0;
+  c->K = { f, 0, cx, 0, f, cy, 0, 0, 1 };
+  c->R = { 1, 0, 0, 0, 1, 0, 0, 0, 1 };
+  c->P = { f, 0, cx, right ? -f * 0.1 : 0.0, 0, f, cy, 0, 0, 0, 1, 0 };
+  return c;
+}
+
+sensor_msgs::ImagePtr image(int width = 64, int height = 48, const std::string& encoding = "bgr8")
+{
+  auto m = boost::make_shared<sensor_msgs::Image>();
+  m->header.stamp = ros::Time(10.0);
+  m->header.frame_id = "cam";
+  m->width = width;
+  m->height = height;
+  m->encoding = encoding;
+  m->step = width * sensor_msgs::image_encodings::numChannels(encoding) *
+            sensor_msgs::image_encodings::bitDepth(encoding) / 8;
+  m->data.resize(static_cast<size_t>(m->step) * height);
+  for (size_t i = 0; i < m->data.size(); ++i)
+    m->data[i] = static_cast<uint8_t>((i * 7) % 251);  // a pattern, so remapping changes pixels
+  return m;
+}
+
+struct Result
+{
+  bool ok;
+  DropReason reason;
+  std::string why;
+  StereoFrame frame;
+};
+
+Result run(StereoInput& input, const sensor_msgs::ImageConstPtr& l, const sensor_msgs::ImageConstPtr& r,
+           const sensor_msgs::CameraInfoConstPtr& li, const sensor_msgs::CameraInfoConstPtr& ri)
+{
+  Result res{ false, DropReason::Count, "", StereoFrame() };
+  res.ok = input.assemble(l, r, li, ri, res.frame, res.reason, res.why);
+  return res;
+}
+}  // namespace
+
+TEST(StereoInput, AcceptsARectifiedPairWithoutCopying)
+{
+  StereoInput input;
+  auto l = image(), r = image();
+  const Result res = run(input, l, r, info(false), info(true));
+  ASSERT_TRUE(res.ok) << res.why;
+  EXPECT_EQ(res.frame.left.data, l->data.data()) << "bgr8 with an identity calibration must be shared, not copied";
+  EXPECT_DOUBLE_EQ(res.frame.stamp, 10.0);
+  EXPECT_NEAR(res.frame.geometry.baseline(), 0.1, 1e-9);
+}
+
+TEST(StereoInput, RectifiesRawImagesWithDistortion)
+{
+  StereoInput input;
+  auto l = image(), r = image();
+  const Result res = run(input, l, r, info(false, -0.3), info(true, -0.3));
+  ASSERT_TRUE(res.ok) << res.why;
+  EXPECT_NE(res.frame.left.data, l->data.data());
+  EXPECT_EQ(res.frame.left.cols, 64);
+  EXPECT_EQ(res.frame.left.rows, 48);
+  const cv::Mat raw(48, 64, CV_8UC3, l->data.data());
+  EXPECT_GT(cv::norm(raw, res.frame.left, cv::NORM_L1), 0.0) << "the distortion was not removed";
+
+  // Already-rectified input (stereo_image_proc): never remapped, whatever camera_info says.
+  StereoInput rectified(StereoInputOptions{ true, 0.0 });
+  const Result same = run(rectified, l, r, info(false, -0.3), info(true, -0.3));
+  ASSERT_TRUE(same.ok) << same.why;
+  EXPECT_EQ(same.frame.left.data, l->data.data());
+}
+
+TEST(StereoInput, ConvertsOtherEncodings)
+{
+  StereoInput input;
+  const Result res = run(input, image(64, 48, "rgb8"), image(64, 48, "rgb8"), info(false), info(true));
+  ASSERT_TRUE(res.ok) << res.why;
+  EXPECT_EQ(res.frame.left.type(), CV_8UC3);
+}
+
+TEST(StereoInput, RejectsBadFramesWithAReason)
+{
+  StereoInput input;
+  EXPECT_EQ(run(input, image(), image(32, 48), info(false), info(true)).reason, DropReason::SizeMismatch);
+  EXPECT_EQ(run(input, image(32, 24), image(32, 24), info(false), info(true)).reason, DropReason::SizeMismatch);
+
+  auto truncated = image();
+  truncated->data.resize(100);
+  EXPECT_EQ(run(input, truncated, image(), info(false), info(true)).reason, DropReason::BadImage);
+  auto short_step = image();
+  short_step->step = 10;
+  EXPECT_EQ(run(input, short_step, image(), info(false), info(true)).reason, DropReason::BadImage);
+  EXPECT_EQ(run(input, image(64, 48, "32FC1"), image(64, 48, "32FC1"), info(false), info(true)).reason,
+            DropReason::BadImage);
+  auto unknown = image();
+  unknown->encoding = "no_such_encoding";
+  const Result u = run(input, unknown, image(), info(false), info(true));
+  EXPECT_EQ(u.reason, DropReason::BadImage);
+  EXPECT_NE(u.why.find("no_such_encoding"), std::string::npos) << u.why;
+
+  auto nan_info = info(true);
+  nan_info->P[0] = std::nan("");
+  EXPECT_EQ(run(input, image(), image(), info(false), nan_info).reason, DropReason::BadCameraInfo);
+  auto nan_k = info(false);
+  nan_k->K[2] = std::nan("");
+  EXPECT_EQ(run(input, image(), image(), nan_k, info(true)).reason, DropReason::BadCameraInfo);
+  auto uncalibrated = boost::make_shared<sensor_msgs::CameraInfo>();
+  EXPECT_EQ(run(input, image(), image(), uncalibrated, info(true)).reason, DropReason::BadCameraInfo);
+  auto no_baseline = info(true);
+  no_baseline->P[3] = 0.0;
+  EXPECT_EQ(run(input, image(), image(), info(false), no_baseline).reason, DropReason::BadCameraInfo);
+  EXPECT_EQ(run(input, image(), image(), nullptr, info(true)).reason, DropReason::OutOfSync);
+
+  auto late = image();
+  late->header.stamp = ros::Time(10.02);
+  EXPECT_EQ(run(input, image(), late, info(false), info(true)).reason, DropReason::OutOfSync);
+  StereoInput tolerant(StereoInputOptions{ false, 0.05 });
+  EXPECT_TRUE(run(tolerant, image(), late, info(false), info(true)).ok);
+
+  // A good frame after all that still works.
+  EXPECT_TRUE(run(input, image(), image(), info(false), info(true)).ok);
+}
+
+TEST(RosParameters, FlattensLikeTheYamlLoader)
+{
+  XmlRpc::XmlRpcValue root;
+  root["engine"]["particles"] = 500;
+  root["engine"]["resample_threshold"] = 0.5;
+  root["colour"]["enabled"] = false;
+  root["state_model"]["type"] = std::string("stereo_pf/Position3D");
+  XmlRpc::XmlRpcValue models;
+  models[0]["name"] = std::string("colour");
+  models[0]["type"] = std::string("stereo_pf/ColourHSI");
+  models[1]["name"] = std::string("shape");
+  models[1]["type"] = std::string("stereo_pf/ShapeCircle");
+  root["observation_models"] = models;
+  root["target_roi"][0] = 1;
+  root["target_roi"][1] = 2.5;
+  root["colour"]["sigma"] = -1.0;  // a reconfigure "unchanged" value: skipped below
+
+  Parameters p;
+  mergeXmlRpc(root, "", p, [](const std::string& key, const XmlRpc::XmlRpcValue&) { return key == "colour/sigma"; });
+  EXPECT_EQ(p.getInt("engine/particles", 0, 0, 10000), 500);
+  EXPECT_DOUBLE_EQ(p.getDouble("engine/resample_threshold", 0, 0, 1), 0.5);
+  EXPECT_FALSE(p.getBool("colour/enabled", true));
+  EXPECT_EQ(p.raw("state_model/type"), "stereo_pf/Position3D");
+  EXPECT_EQ(p.raw("observation_models/1/type"), "stereo_pf/ShapeCircle");
+  EXPECT_EQ(p.raw("observation_models/0/name"), "colour");
+  EXPECT_EQ(p.getDoubles("target_roi", {}), (std::vector<double>{ 1.0, 2.5 }));
+  EXPECT_FALSE(p.has("colour/sigma"));
+}
+
+TEST(TrackerOutputs, CloudMergesResampledCopiesAndSumsTheirWeights)
+{
+  Eigen::MatrixX3d points(4, 3);
+  points << 0, 0, 1, 0, 0, 1, 0.1, 0, 1, std::nan(""), 0, 1;
+  Eigen::VectorXd weights(4);
+  weights << 0.25, 0.25, 0.25, 0.25;
+  std::vector<Eigen::Vector3f> merged;
+  std::vector<float> merged_w;
+  mergeDuplicates(points, weights, merged, merged_w);
+  ASSERT_EQ(merged.size(), 2u);
+  EXPECT_FLOAT_EQ(merged_w[0], 0.5f);
+  EXPECT_FLOAT_EQ(merged_w[1], 0.25f);
+
+  std_msgs::Header h;
+  h.frame_id = "cam";
+  sensor_msgs::PointCloud2 cloud;
+  toCloud(h, merged, merged_w, cloud);
+  EXPECT_EQ(cloud.width, 2u);
+  ASSERT_EQ(cloud.fields.size(), 4u);
+  EXPECT_EQ(cloud.fields[3].name, "weight");
+  sensor_msgs::PointCloud2ConstIterator<float> w(cloud, "weight");
+  EXPECT_FLOAT_EQ(*w, 0.5f);
+}
+
+TEST(TrackerOutputs, CovarianceEllipsoidFollowsTheEigenvectors)
+{
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  cov(0, 0) = 0.01;  // sigma 0.1 along x
+  cov(1, 1) = 0.0001;
+  cov(2, 2) = 0.0004;
+  Eigen::Vector3d scale;
+  Eigen::Vector4d q;
+  covarianceEllipsoid(cov, 2.0, scale, q);
+  std::vector<double> s = { scale.x(), scale.y(), scale.z() };
+  std::sort(s.begin(), s.end());
+  EXPECT_NEAR(s[2], 0.4, 1e-9);  // 2 sigma on each side of the centre
+  EXPECT_NEAR(s[0], 0.04, 1e-9);
+  EXPECT_NEAR(q.norm(), 1.0, 1e-9);
+
+  covarianceEllipsoid(Eigen::Matrix3d::Constant(std::nan("")), 2.0, scale, q);
+  EXPECT_TRUE(scale.allFinite());
+  EXPECT_TRUE(q.allFinite());
+}
+
+TEST(TrackerOutputs, MarkersDeleteTheEstimateWhenInvalid)
+{
+  std_msgs::Header h;
+  h.frame_id = "cam";
+  FrameResult r;
+  r.estimate.valid = false;
+  EstimateTrail trail(3);
+  for (int i = 0; i < 5; ++i)
+    trail.add(Eigen::Vector3d(i, 0, 1));
+  EXPECT_EQ(trail.points().size(), 3u);
+  const visualization_msgs::MarkerArray m = toMarkers(h, r, trail, MarkerOptions());
+  int deletes = 0, lines = 0;
+  for (const auto& marker : m.markers)
+  {
+    deletes += marker.action == visualization_msgs::Marker::DELETE;
+    lines += marker.ns == "trajectory" && marker.points.size() == 3;
+  }
+  EXPECT_EQ(deletes, 3);
+  EXPECT_EQ(lines, 1);
+}
+
+int main(int argc, char** argv)
+{
+  testing::InitGoogleTest(&argc, argv);
+  ros::Time::init();
+  return RUN_ALL_TESTS();
+}

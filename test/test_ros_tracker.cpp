@@ -1,0 +1,519 @@
+// rostest for the tracker nodelet / node: plays a make_scene bag into it frame by frame (lockstep: the next
+// frame is published once ~target answered the previous one, so the test is independent of machine speed)
+// and checks accuracy against the ground truth, the services, lazy debug images, robustness to bad frames
+// and the explained error for an unknown plugin type.
+//
+// Private parameters: tracker (the tracker's node name, default /stereo_pf_tracker), manager (the nodelet
+// manager, for the bad-plugin test). The bag is generated at build time (TEST_BAG).
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <cstdio>
+#include <future>
+#include <map>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <diagnostic_msgs/DiagnosticArray.h>
+#include <dynamic_reconfigure/client.h>
+#include <geometry_msgs/PointStamped.h>
+#include <gtest/gtest.h>
+#include <nodelet/NodeletList.h>
+#include <ros/ros.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <sensor_msgs/RegionOfInterest.h>
+#include <std_srvs/Empty.h>
+#include <unistd.h>
+
+#include "stereo_pf/SetTarget.h"
+#include "stereo_pf/TargetFile.h"
+#include "stereo_pf/TrackerEngineConfig.h"
+#include "stereo_pf/TrackerObservationConfig.h"
+
+namespace
+{
+/// One stereo frame of the bag.
+struct BagFrame
+{
+  sensor_msgs::Image left, right;
+  sensor_msgs::CameraInfo left_info, right_info;
+  geometry_msgs::Point truth;
+  sensor_msgs::RegionOfInterest roi;
+};
+
+std::vector<BagFrame> readBag(const std::string& path)
+{
+  rosbag::Bag bag(path, rosbag::bagmode::Read);
+  std::map<ros::Time, BagFrame> frames;
+  for (const rosbag::MessageInstance& m : rosbag::View(bag))
+  {
+    const std::string& t = m.getTopic();
+    if (auto img = m.instantiate<sensor_msgs::Image>())
+      (t.find("left") != std::string::npos ? frames[img->header.stamp].left : frames[img->header.stamp].right) = *img;
+    else if (auto info = m.instantiate<sensor_msgs::CameraInfo>())
+      (t.find("left") != std::string::npos ? frames[info->header.stamp].left_info :
+                                              frames[info->header.stamp].right_info) = *info;
+    else if (auto p = m.instantiate<geometry_msgs::PointStamped>())
+      frames[p->header.stamp].truth = p->point;
+    else if (auto roi = m.instantiate<sensor_msgs::RegionOfInterest>())
+      frames[m.getTime()].roi = *roi;
+  }
+  std::vector<BagFrame> out;
+  for (auto& kv : frames)
+    out.push_back(kv.second);
+  return out;
+}
+
+double distance(const geometry_msgs::Point& a, const geometry_msgs::Point& b)
+{
+  return std::sqrt((a.x - b.x) * (a.x - b.x) + (a.y - b.y) * (a.y - b.y) + (a.z - b.z) * (a.z - b.z));
+}
+
+/// Everything the tests talk to, shared by all tests of the process (one tracker instance).
+class Harness
+{
+public:
+  Harness() : pnh_("~")
+  {
+    pnh_.param<std::string>("tracker", tracker_, "/stereo_pf_tracker");
+    pnh_.param<std::string>("manager", manager_, "/stereo_pf_manager");
+    left_pub_ = nh_.advertise<sensor_msgs::Image>("stereo_camera/left/image_raw", 5);
+    right_pub_ = nh_.advertise<sensor_msgs::Image>("stereo_camera/right/image_raw", 5);
+    left_info_pub_ = nh_.advertise<sensor_msgs::CameraInfo>("stereo_camera/left/camera_info", 5);
+    right_info_pub_ = nh_.advertise<sensor_msgs::CameraInfo>("stereo_camera/right/camera_info", 5);
+    target_sub_ = nh_.subscribe(tracker_ + "/target", 100, &Harness::onTarget, this, ros::TransportHints().tcpNoDelay());
+    diag_sub_ = nh_.subscribe("/diagnostics", 100, &Harness::onDiagnostics, this);
+  }
+
+  const std::string& tracker() const { return tracker_; }
+  const std::string& manager() const { return manager_; }
+  ros::NodeHandle& nh() { return nh_; }
+
+  const std::vector<BagFrame>& frames()
+  {
+    if (frames_.empty())
+      frames_ = readBag(TEST_BAG);
+    return frames_;
+  }
+
+  /// Wait until the tracker subscribes to all four inputs.
+  bool waitForTracker(double timeout = 20.0)
+  {
+    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout);
+    while (ros::WallTime::now() < end)
+    {
+      if (left_pub_.getNumSubscribers() > 0 && right_pub_.getNumSubscribers() > 0 &&
+          left_info_pub_.getNumSubscribers() > 0 && right_info_pub_.getNumSubscribers() > 0 &&
+          target_sub_.getNumPublishers() > 0)
+        return true;
+      ros::WallDuration(0.05).sleep();
+    }
+    return false;
+  }
+
+  /// Publish a (possibly modified) frame with a fresh, increasing stamp; returns the stamp.
+  ros::Time publish(BagFrame f)
+  {
+    const ros::Time stamp(2000.0 + (count_++) / 30.0);
+    f.left.header.stamp = f.right.header.stamp = f.left_info.header.stamp = f.right_info.header.stamp = stamp;
+    left_info_pub_.publish(f.left_info);
+    right_info_pub_.publish(f.right_info);
+    left_pub_.publish(f.left);
+    right_pub_.publish(f.right);
+    return stamp;
+  }
+
+  /// Publish and wait for ~target with the same stamp; false when none came within `timeout`.
+  bool step(const BagFrame& f, geometry_msgs::Point& estimate, double timeout = 3.0)
+  {
+    const ros::Time stamp = publish(f);
+    std::unique_lock<std::mutex> lock(mutex_);
+    const bool got = cv_.wait_for(lock, std::chrono::duration<double>(timeout),
+                                  [&] { return targets_.count(stamp) > 0; });
+    if (got)
+      estimate = targets_[stamp];
+    return got;
+  }
+
+  /// Publish frames (cycling through the bag) until `done` is ready or the timeout expires.
+  template <class Future>
+  bool publishUntil(Future& done, size_t first_frame, double timeout = 10.0)
+  {
+    const ros::WallTime end = ros::WallTime::now() + ros::WallDuration(timeout);
+    for (size_t k = first_frame; ros::WallTime::now() < end; ++k)
+    {
+      publish(frames()[k % frames().size()]);
+      if (done.wait_for(std::chrono::milliseconds(100)) == std::future_status::ready)
+        return true;
+    }
+    return false;
+  }
+
+  /// The latest diagnostics of the tracker whose "frames received" is at least `min_frames`.
+  bool diagnostics(std::map<std::string, std::string>& out, uint64_t min_frames, double timeout = 5.0)
+  {
+    std::unique_lock<std::mutex> lock(mutex_);
+    const bool got = cv_.wait_for(lock, std::chrono::duration<double>(timeout), [&] {
+      return diag_.count("frames received") && std::stoull(diag_["frames received"]) >= min_frames;
+    });
+    out = diag_;
+    return got;
+  }
+
+  /// The latest tracker diagnostics status matching `pred` (level, message).
+  bool waitForStatus(const std::function<bool(int, const std::string&)>& pred, std::string& message, double timeout)
+  {
+    std::unique_lock<std::mutex> lock(mutex_);
+    const bool got = cv_.wait_for(lock, std::chrono::duration<double>(timeout),
+                                  [&] { return has_status_ && pred(status_level_, status_message_); });
+    message = status_message_;
+    return got;
+  }
+
+  uint64_t counter(const std::string& key, uint64_t min_frames)
+  {
+    std::map<std::string, std::string> d;
+    EXPECT_TRUE(diagnostics(d, min_frames)) << "no diagnostics with " << min_frames << " frames received";
+    return d.count(key) ? std::stoull(d[key]) : 0;
+  }
+
+  uint64_t published() const { return count_; }
+
+private:
+  void onTarget(const geometry_msgs::PointStampedConstPtr& msg)
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    targets_[msg->header.stamp] = msg->point;
+    cv_.notify_all();
+  }
+
+  void onDiagnostics(const diagnostic_msgs::DiagnosticArrayConstPtr& msg)
+  {
+    const std::string suffix = ": tracker";
+    for (const auto& s : msg->status)
+    {
+      if (s.name.size() < suffix.size() || s.name.compare(s.name.size() - suffix.size(), suffix.size(), suffix) != 0)
+        continue;
+      std::lock_guard<std::mutex> lock(mutex_);
+      diag_.clear();
+      for (const auto& kv : s.values)
+        diag_[kv.key] = kv.value;
+      has_status_ = true;
+      status_level_ = s.level;
+      status_message_ = s.message;
+      cv_.notify_all();
+    }
+  }
+
+  ros::NodeHandle nh_, pnh_;
+  std::string tracker_, manager_;
+  ros::Publisher left_pub_, right_pub_, left_info_pub_, right_info_pub_;
+  ros::Subscriber target_sub_, diag_sub_;
+  std::vector<BagFrame> frames_;
+  uint64_t count_ = 0;
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  std::map<ros::Time, geometry_msgs::Point> targets_;
+  std::map<std::string, std::string> diag_;
+  bool has_status_ = false;
+  int status_level_ = 0;
+  std::string status_message_;
+};
+
+Harness* harness = nullptr;
+
+/// Teach the tracker the bag's target through ~set_target while frames flow.
+void learnTarget()
+{
+  Harness& h = *harness;
+  ros::ServiceClient client = h.nh().serviceClient<stereo_pf::SetTarget>(h.tracker() + "/set_target");
+  ASSERT_TRUE(client.waitForExistence(ros::Duration(20.0)));
+  stereo_pf::SetTarget srv;
+  srv.request.roi = h.frames()[0].roi;
+  auto done = std::async(std::launch::async, [&] { return client.call(srv); });
+  ASSERT_TRUE(h.publishUntil(done, 0)) << "set_target did not answer";
+  ASSERT_TRUE(done.get());
+  EXPECT_TRUE(srv.response.success) << srv.response.message;
+  EXPECT_EQ(srv.response.message.find("queued"), std::string::npos) << srv.response.message;
+}
+
+/// Track every frame of the bag; returns the errors (m) of the frames that got an estimate.
+std::vector<double> trackBag(int& missing)
+{
+  Harness& h = *harness;
+  std::vector<double> errors;
+  missing = 0;
+  for (const BagFrame& f : h.frames())
+  {
+    geometry_msgs::Point p;
+    if (h.step(f, p))
+      errors.push_back(distance(p, f.truth));
+    else
+      ++missing;
+  }
+  return errors;
+}
+
+double percentile(std::vector<double> v, double q)
+{
+  if (v.empty())
+    return 1e9;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, static_cast<size_t>(q * (v.size() - 1) + 0.5))];
+}
+
+}  // namespace
+
+TEST(Tracker, TracksTheBagWithinToleranceOfGroundTruth)
+{
+  Harness& h = *harness;
+  ASSERT_TRUE(h.waitForTracker()) << "the tracker did not subscribe to the stereo topics";
+  ASSERT_GE(h.frames().size(), 30u);
+  learnTarget();
+  int missing = 0;
+  const std::vector<double> errors = trackBag(missing);
+  EXPECT_EQ(missing, 0) << "frames without a ~target";
+  // Skip the first frames (convergence from the prior).
+  const std::vector<double> settled(errors.begin() + std::min<size_t>(5, errors.size()), errors.end());
+  std::printf("errors over %zu settled frames: median %.1f cm, 95%% %.1f cm, max %.1f cm\n", settled.size(),
+              percentile(settled, 0.5) * 100, percentile(settled, 0.95) * 100, percentile(settled, 1.0) * 100);
+  EXPECT_LT(percentile(settled, 0.5), 0.04);
+  EXPECT_LT(percentile(settled, 0.95), 0.10);
+}
+
+TEST(Tracker, DebugImagesOnlyWhileSubscribed)
+{
+  Harness& h = *harness;
+  geometry_msgs::Point p;
+  for (int k = 0; k < 5; ++k)
+    ASSERT_TRUE(h.step(h.frames()[k], p));
+  EXPECT_EQ(h.counter("debug images drawn", h.published()), 0u) << "drawn without a subscriber";
+
+  std::mutex m;
+  std::condition_variable cv;
+  int received = 0;
+  sensor_msgs::Image last;
+  ros::Subscriber sub = h.nh().subscribe<sensor_msgs::Image>(h.tracker() + "/left/debug_image", 5,
+                                                             [&](const sensor_msgs::ImageConstPtr& img) {
+                                                               std::lock_guard<std::mutex> lock(m);
+                                                               last = *img;
+                                                               ++received;
+                                                               cv.notify_all();
+                                                             });
+  for (size_t k = 5; k < 60; ++k)
+  {
+    ASSERT_TRUE(h.step(h.frames()[k % h.frames().size()], p));
+    std::unique_lock<std::mutex> lock(m);
+    if (cv.wait_for(lock, std::chrono::milliseconds(50), [&] { return received >= 3; }))
+      break;
+  }
+  {
+    std::lock_guard<std::mutex> lock(m);
+    ASSERT_GE(received, 3) << "no debug images while subscribed";
+    EXPECT_EQ(last.width, h.frames()[0].left.width);
+    EXPECT_EQ(last.height, h.frames()[0].left.height);
+    EXPECT_EQ(last.encoding, "bgr8");
+  }
+  sub.shutdown();
+  ros::WallDuration(1.0).sleep();  // let the disconnect reach the tracker
+  for (int k = 0; k < 3; ++k)
+    ASSERT_TRUE(h.step(h.frames()[k], p));
+  const uint64_t drawn = h.counter("debug images drawn", h.published());
+  EXPECT_GE(drawn, 3u);
+  for (int k = 3; k < 10; ++k)
+    ASSERT_TRUE(h.step(h.frames()[k], p));
+  EXPECT_EQ(h.counter("debug images drawn", h.published()), drawn) << "still drawing after the unsubscribe";
+}
+
+TEST(Tracker, BadFramesAreDroppedCountedAndTrackingContinues)
+{
+  Harness& h = *harness;
+  geometry_msgs::Point p;
+  ASSERT_TRUE(h.step(h.frames()[10], p));
+  const uint64_t before_size = h.counter("dropped: size mismatch", h.published());
+  const uint64_t before_image = h.counter("dropped: bad image", h.published());
+  const uint64_t before_info = h.counter("dropped: bad camera_info", h.published());
+
+  // Wrong size: the right image is half as wide as the left one and its camera_info.
+  BagFrame small = h.frames()[11];
+  small.right.width /= 2;
+  small.right.step /= 2;
+  small.right.data.resize(static_cast<size_t>(small.right.step) * small.right.height);
+  EXPECT_FALSE(h.step(small, p, 0.5)) << "a frame with a wrong-size image was tracked";
+  // Truncated data (claims 640x480 but carries half the bytes).
+  BagFrame truncated = h.frames()[12];
+  truncated.left.data.resize(truncated.left.data.size() / 2);
+  EXPECT_FALSE(h.step(truncated, p, 0.5));
+  // Unsupported encoding.
+  BagFrame float_image = h.frames()[13];
+  float_image.left.encoding = "32FC1";
+  EXPECT_FALSE(h.step(float_image, p, 0.5));
+  // NaN calibration.
+  BagFrame nan_info = h.frames()[14];
+  nan_info.right_info.P[0] = std::nan("");
+  EXPECT_FALSE(h.step(nan_info, p, 0.5));
+
+  // Tracking continues on good frames: the scene resumes where it was (frame 11) so the test measures the
+  // robustness to the bad frames, not how fast the filter catches up after a gap in the motion.
+  int good = 0;
+  for (size_t k = 11; k < 25; ++k)
+  {
+    ASSERT_TRUE(h.step(h.frames()[k], p)) << "no estimate after the bad frames (frame " << k << ")";
+    if (distance(p, h.frames()[k].truth) < 0.10)
+      ++good;
+  }
+  EXPECT_GE(good, 12) << "tracking degraded after the bad frames";
+  EXPECT_EQ(h.counter("dropped: size mismatch", h.published()), before_size + 1);
+  EXPECT_EQ(h.counter("dropped: bad image", h.published()), before_image + 2);
+  EXPECT_EQ(h.counter("dropped: bad camera_info", h.published()), before_info + 1);
+}
+
+TEST(Tracker, ResetRestartsTheSearchAndRecovers)
+{
+  Harness& h = *harness;
+  ros::ServiceClient client = h.nh().serviceClient<std_srvs::Empty>(h.tracker() + "/reset");
+  std_srvs::Empty srv;
+  ASSERT_TRUE(client.call(srv));
+  geometry_msgs::Point p;
+  int good = 0;
+  for (size_t k = 0; k < 40; ++k)
+  {
+    ASSERT_TRUE(h.step(h.frames()[k], p));
+    if (k >= 15 && distance(p, h.frames()[k].truth) < 0.08)
+      ++good;
+  }
+  EXPECT_GE(good, 20) << "did not re-acquire the target after ~reset";
+}
+
+TEST(Tracker, SetTargetRejectsARegionOutsideTheImage)
+{
+  Harness& h = *harness;
+  ros::ServiceClient client = h.nh().serviceClient<stereo_pf::SetTarget>(h.tracker() + "/set_target");
+  stereo_pf::SetTarget srv;
+  srv.request.roi.x_offset = 5000;
+  srv.request.roi.y_offset = 5000;
+  srv.request.roi.width = 20;
+  srv.request.roi.height = 20;
+  auto done = std::async(std::launch::async, [&] { return client.call(srv); });
+  ASSERT_TRUE(h.publishUntil(done, 0));
+  ASSERT_TRUE(done.get());
+  EXPECT_FALSE(srv.response.success);
+  EXPECT_FALSE(srv.response.message.empty());
+  // The previous target is kept: tracking goes on.
+  geometry_msgs::Point p;
+  for (size_t k = 0; k < 10; ++k)
+    ASSERT_TRUE(h.step(h.frames()[k], p));
+}
+
+TEST(Tracker, SaveAndLoadTarget)
+{
+  Harness& h = *harness;
+  const std::string path = "/tmp/stereo_pf_rostest_target_" + std::to_string(getpid()) + ".yaml";
+  ros::ServiceClient save = h.nh().serviceClient<stereo_pf::TargetFile>(h.tracker() + "/save_target");
+  ros::ServiceClient load = h.nh().serviceClient<stereo_pf::TargetFile>(h.tracker() + "/load_target");
+  stereo_pf::TargetFile srv;
+  srv.request.path = path;
+  ASSERT_TRUE(save.call(srv));
+  EXPECT_TRUE(srv.response.success) << srv.response.message;
+  ASSERT_TRUE(load.call(srv));
+  EXPECT_TRUE(srv.response.success) << srv.response.message;
+  srv.request.path = "/nonexistent/target.yaml";
+  ASSERT_TRUE(load.call(srv));
+  EXPECT_FALSE(srv.response.success);
+  std::remove(path.c_str());
+  geometry_msgs::Point p;
+  int good = 0;
+  for (size_t k = 0; k < 30; ++k)
+    if (h.step(h.frames()[k], p) && k >= 10 && distance(p, h.frames()[k].truth) < 0.08)
+      ++good;
+  EXPECT_GE(good, 15) << "not tracking with the reloaded target";
+}
+
+TEST(Tracker, ReconfigureParticlesAndRejectAnOutOfRangeSigma)
+{
+  Harness& h = *harness;
+  std::mutex m;
+  std::condition_variable cv;
+  uint32_t cloud_points = 0;
+  int clouds = 0;
+  ros::Subscriber sub = h.nh().subscribe<sensor_msgs::PointCloud2>(h.tracker() + "/particles", 5,
+                                                                   [&](const sensor_msgs::PointCloud2ConstPtr& c) {
+                                                                     std::lock_guard<std::mutex> lock(m);
+                                                                     cloud_points = c->width * c->height;
+                                                                     ++clouds;
+                                                                     cv.notify_all();
+                                                                   });
+  dynamic_reconfigure::Client<stereo_pf::TrackerEngineConfig> engine(h.tracker() + "/engine");
+  stereo_pf::TrackerEngineConfig config;
+  ASSERT_TRUE(engine.getCurrentConfiguration(config, ros::Duration(5.0)));
+  config.particles = 50;
+  config.resample_threshold = 0.0;  // never resample: every particle stays a distinct point
+  ASSERT_TRUE(engine.setConfiguration(config));
+  geometry_msgs::Point p;
+  for (size_t k = 0; k < 20; ++k)
+    ASSERT_TRUE(h.step(h.frames()[k], p));
+  {
+    std::unique_lock<std::mutex> lock(m);
+    ASSERT_TRUE(cv.wait_for(lock, std::chrono::seconds(3), [&] { return clouds > 0; }));
+    EXPECT_LE(cloud_points, 50u);
+    EXPECT_GT(cloud_points, 10u);
+  }
+
+  // ColourHSI accepts sigma up to 10; the reconfigure range allows 50: rejected, tracking goes on.
+  dynamic_reconfigure::Client<stereo_pf::TrackerObservationConfig> colour(h.tracker() + "/colour");
+  stereo_pf::TrackerObservationConfig cue;
+  ASSERT_TRUE(colour.getCurrentConfiguration(cue, ros::Duration(5.0)));
+  cue.sigma = 40.0;
+  ASSERT_TRUE(colour.setConfiguration(cue));
+  for (size_t k = 20; k < 30; ++k)
+    ASSERT_TRUE(h.step(h.frames()[k], p)) << "no estimate after a rejected reconfigure";
+  EXPECT_EQ(h.counter("dropped: processing error", h.published()), 0u);
+
+  config.particles = 1000;
+  config.resample_threshold = 1.0;
+  ASSERT_TRUE(engine.setConfiguration(config));
+}
+
+TEST(BadPlugin, UnknownTypeIsExplainedAndTheManagerSurvives)
+{
+  Harness& h = *harness;
+  std::string message;
+  const bool explained = h.waitForStatus(
+      [](int level, const std::string& text) {
+        return level == diagnostic_msgs::DiagnosticStatus::ERROR && text.find("unknown type") != std::string::npos;
+      },
+      message, 20.0);
+  ASSERT_TRUE(explained) << "no ERROR diagnostics explaining the unknown type; last: " << message;
+  EXPECT_NE(message.find("stereo_pf/NoSuchCue"), std::string::npos) << message;
+  EXPECT_NE(message.find("stereo_pf/ColourHSI"), std::string::npos) << "the declared types are not listed: " << message;
+
+  // The manager is alive and still lists the (inert) tracker.
+  ros::ServiceClient list = h.nh().serviceClient<nodelet::NodeletList>(h.manager() + "/list");
+  ASSERT_TRUE(list.waitForExistence(ros::Duration(10.0)));
+  nodelet::NodeletList srv;
+  ASSERT_TRUE(list.call(srv));
+  EXPECT_NE(std::find(srv.response.nodelets.begin(), srv.response.nodelets.end(), h.tracker()),
+            srv.response.nodelets.end());
+}
+
+int main(int argc, char** argv)
+{
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_ros_tracker");
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  Harness h;
+  harness = &h;
+  const int result = RUN_ALL_TESTS();
+  harness = nullptr;
+  spinner.stop();
+  ros::shutdown();
+  return result;
+}
