@@ -468,6 +468,125 @@ TEST(SceneRender, CheckeredBallAndOccluderInCode)
   EXPECT_EQ(cv::Vec3d(centre[0], centre[1], centre[2]), board.colour);
 }
 
+// ---------------------------------------------------------------------------------------------------
+// Square patches (shape: square), added for the colour-distractor scene.
+
+TEST(SceneSquare, NewShippedScenesLoad)
+{
+  // The two scenes shipped with the texture and shape cues follow the shipped-scene conventions too.
+  for (const std::string name : { "checkered_cluttered", "colour_distractor" })
+  {
+    SCOPED_TRACE(name);
+    SceneDescription d;
+    ASSERT_NO_THROW(d = loadScene(scenesDir() + name + ".yaml"));
+    EXPECT_EQ(d.name, name);
+    EXPECT_EQ(d.frames, 300);
+    ASSERT_FALSE(d.objects.empty());
+    EXPECT_EQ(d.objects[0].shape, stereo_pf::SceneSphere::Shape::Sphere);
+    EXPECT_EQ(d.objects[0].trajectory.type, Trajectory::Type::Pendulum);
+    EXPECT_NO_THROW(SceneRenderer r(d));
+  }
+  const SceneDescription checkered = loadScene(scenesDir() + "checkered_cluttered.yaml");
+  EXPECT_TRUE(checkered.objects[0].checkered);
+  EXPECT_EQ(checkered.background.type, stereo_pf::SceneBackground::Type::Cluttered);
+  const SceneDescription distractor = loadScene(scenesDir() + "colour_distractor.yaml");
+  ASSERT_EQ(distractor.objects.size(), 2u);
+  EXPECT_EQ(distractor.objects[1].shape, stereo_pf::SceneSphere::Shape::Square);
+  EXPECT_EQ(distractor.objects[1].colour, distractor.objects[0].colour);  // the target's colour
+  EXPECT_TRUE(distractor.objects[1].checkered);
+}
+
+TEST(SceneSquare, ShapeKeyIsChecked)
+{
+  const SceneDescription d = loadScene(writeTemp("square_ok", std::string(kMinimal) + "    shape: square\n"));
+  EXPECT_EQ(d.objects[0].shape, stereo_pf::SceneSphere::Shape::Square);
+  EXPECT_EQ(loadScene(writeTemp("sphere_default", kMinimal)).objects[0].shape,
+            stereo_pf::SceneSphere::Shape::Sphere);
+  const std::string e = loadError("square_bad_shape", std::string(kMinimal) + "    shape: cube\n");
+  EXPECT_NE(e.find("objects[0].shape"), std::string::npos) << e;
+  EXPECT_NE(e.find("sphere, square"), std::string::npos) << e;
+}
+
+TEST(SceneSquare, RendersAFlatShadedPatchWithGroundTruth)
+{
+  SceneDescription d;
+  d.frames = 1;
+  d.noise_sigma = 0.0;
+  stereo_pf::SceneSphere square;
+  square.shape = stereo_pf::SceneSphere::Shape::Square;
+  square.radius = 0.05;  // 10 cm side
+  square.colour = cv::Vec3d(20, 120, 255);
+  square.trajectory = Trajectory::fixed(Eigen::Vector3d(0.1, -0.05, 1.0));
+  d.objects.push_back(square);
+  SceneRenderer r(d);
+  cv::Mat left, right;
+  r.render(0, left, right);
+
+  // An axis-aligned box of 2 r f / z = 52.5 px a side around the projected centre.
+  const cv::Rect roi = r.objectRoi(0, 0, View::Left);
+  EXPECT_NEAR(roi.width, 52.5, 1.0);
+  EXPECT_NEAR(roi.height, 52.5, 1.0);
+  const double u = d.camera.cx + d.camera.fx * 0.1, v = d.camera.cy - d.camera.fy * 0.05;
+  EXPECT_NEAR(roi.x + roi.width / 2.0, u + 0.5, 1.0);
+  EXPECT_NEAR(roi.y + roi.height / 2.0, v + 0.5, 1.0);
+  EXPECT_DOUBLE_EQ(r.visibleFraction(0, 0, View::Left), 1.0);
+  // One flat face, one Lambertian shade: the same colour everywhere inside, a shade of the albedo.
+  const cv::Vec3b a = left.at<cv::Vec3b>(cvRound(v), cvRound(u));
+  const cv::Vec3b b = left.at<cv::Vec3b>(roi.y + 3, roi.x + 3);
+  EXPECT_EQ(a, b);
+  EXPECT_TRUE(isShadeOf(cv::Vec3d(a[0], a[1], a[2]), square.colour, d.light.ambient));
+  // Outside the box: background.
+  const cv::Vec3b bg = left.at<cv::Vec3b>(roi.y + roi.height / 2, roi.x + roi.width + 3);
+  EXPECT_EQ(cv::Vec3d(bg[0], bg[1], bg[2]), d.background.colour);
+  // The right camera sees it shifted by the disparity f b / z.
+  const cv::Rect roi_r = r.objectRoi(0, 0, View::Right);
+  EXPECT_NEAR(roi.x - roi_r.x, d.camera.fx * d.camera.baseline / 1.0, 1.0);
+
+  // A checker pattern: both colours inside; [4, 1] gives vertical stripes (constant down a column).
+  d.objects[0].checkered = true;
+  d.objects[0].colour2 = cv::Vec3d(255, 255, 255);
+  d.objects[0].checker_longitude = 4;
+  d.objects[0].checker_latitude = 1;
+  SceneRenderer striped(d);
+  striped.render(0, left, right);
+  const cv::Vec3b top = left.at<cv::Vec3b>(roi.y + 4, roi.x + roi.width / 8);
+  const cv::Vec3b bottom = left.at<cv::Vec3b>(roi.y + roi.height - 5, roi.x + roi.width / 8);
+  const cv::Vec3b next = left.at<cv::Vec3b>(roi.y + 4, roi.x + 3 * roi.width / 8);
+  EXPECT_EQ(top, bottom);
+  EXPECT_NE(top, next);
+}
+
+TEST(SceneSquare, OccludesABallBehindIt)
+{
+  SceneDescription d;
+  d.frames = 1;
+  d.noise_sigma = 0.0;
+  stereo_pf::SceneSphere ball;
+  ball.radius = 0.035;
+  ball.trajectory = Trajectory::fixed(Eigen::Vector3d(0.0, 0.0, 1.2));
+  d.objects.push_back(ball);
+  stereo_pf::SceneSphere square;
+  square.shape = stereo_pf::SceneSphere::Shape::Square;
+  square.radius = 0.05;
+  square.colour = cv::Vec3d(200, 60, 60);
+  // Nearer, covering the ball's left half in the left image.
+  square.trajectory = Trajectory::fixed(Eigen::Vector3d(-0.05, 0.0, 1.0));
+  d.objects.push_back(square);
+  SceneRenderer r(d);
+  EXPECT_NEAR(r.visibleFraction(0, 0, View::Left), 0.5, 0.08);
+  EXPECT_DOUBLE_EQ(r.visibleFraction(1, 0, View::Left), 1.0);  // nothing hides the square
+  cv::Mat left, right;
+  r.render(0, left, right);
+  const double u = d.camera.cx, v = d.camera.cy;  // the ball's centre: covered by the square
+  const cv::Vec3b p = left.at<cv::Vec3b>(cvRound(v), cvRound(u) - 5);
+  EXPECT_TRUE(isShadeOf(cv::Vec3d(p[0], p[1], p[2]), square.colour, d.light.ambient));
+  // Moved behind the ball, the square is the one hidden.
+  d.objects[1].trajectory = Trajectory::fixed(Eigen::Vector3d(-0.05, 0.0, 1.5));
+  SceneRenderer behind(d);
+  EXPECT_DOUBLE_EQ(behind.visibleFraction(0, 0, View::Left), 1.0);
+  EXPECT_LT(behind.visibleFraction(1, 0, View::Left), 0.9);
+}
+
 int main(int argc, char** argv)
 {
   testing::InitGoogleTest(&argc, argv);

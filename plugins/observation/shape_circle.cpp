@@ -17,8 +17,52 @@ namespace
 constexpr double kPi = 3.14159265358979323846;
 // Table resolution of the Gaussian: 1/32 px is far below the peaks' localisation error.
 constexpr float kLutPerPixel = 32.0f;
+// Lines whose factors are multiplied before taking one log: 16 factors of at most ~1e9 (numerators) stay
+// far inside double range whatever the parameters; a power of two.
+constexpr int kLinesPerLog = 16;
 // Samples per vector of the line processing.
 constexpr int kLanes = cv::v_uint8x16::nlanes;
+// Lines per vector of the contour-point computation.
+constexpr int kLines4 = cv::v_float32x4::nlanes;
+
+// The image of a sphere whose centre projects to (u, v) with apparent radius r = f R / z (the 3D state
+// models' convention) in a pinhole camera of focal length f and principal point (cx, cy): off the optical
+// axis it is an ellipse, elongated away from the principal point (by 1 / cos(theta), ~6 % at 20 deg) and
+// centred slightly further out. A circle of radius r would fit it best with a larger radius, i.e. a closer
+// depth. Writes the ellipse's centre (cu, cv), radial unit vector (ex, ey) and semi-axes a (radial) >= b;
+// false when the circle is exact enough (on the axis) or the formula breaks down (the sphere reaching
+// 90 deg off the axis).
+bool sphereSilhouette(float u, float v, float r, float f, float cx, float cy, float& cu, float& cv, float& ex,
+                      float& ey, float& a, float& b)
+{
+  const float dx = u - cx, dy = v - cy;
+  const float rho = std::sqrt(dx * dx + dy * dy);
+  if (!(rho > 1e-3f * f))
+    return false;
+  const float t = rho / f;                               // tan(theta), theta: centre's angle off the axis
+  const float cos_t = 1.0f / std::sqrt(1.0f + t * t);
+  const float sin_a = r * cos_t / f;                     // sin(alpha) = R / distance: angular radius
+  if (!(sin_a < 0.9f))
+    return false;
+  const float tan_a = sin_a / std::sqrt(1.0f - sin_a * sin_a);
+  const float den = 1.0f - t * tan_a;
+  if (!(den > 0.05f))
+    return false;
+  // The silhouette cone spans theta - alpha .. theta + alpha radially; its perpendicular half-width is
+  // f sin(alpha) / sqrt(cos^2 theta - sin^2 alpha).
+  const float t_far = (t + tan_a) / den, t_near = (t - tan_a) / (1.0f + t * tan_a);
+  const float perpendicular2 = cos_t * cos_t - sin_a * sin_a;
+  if (!(perpendicular2 > 0.0f))
+    return false;
+  ex = dx / rho;
+  ey = dy / rho;
+  const float centre = 0.5f * f * (t_far + t_near);
+  a = 0.5f * f * (t_far - t_near);
+  b = f * sin_a / std::sqrt(perpendicular2);
+  cu = cx + ex * centre;
+  cv = cy + ey * centre;
+  return true;
+}
 
 std::string rectText(const cv::Rect& r)
 {
@@ -41,9 +85,10 @@ ShapeCircle::Tunables ShapeCircle::readTunables() const
   t.line_half_length = p.getInt("line_half_length", 5, 1, 25);
   t.sigma = p.getDouble("sigma", 1.5, 0.1, 50.0);
   t.q0 = p.getDouble("q0", 0.1, 0.001, 0.999);
-  t.edge_threshold = p.getDouble("edge_threshold", 10.0, 0.0, 255.0);
+  t.edge_threshold = p.getDouble("edge_threshold", 16.0, 0.0, 255.0);
   t.radius = p.getDouble("radius", 0.0, 0.0, 2000.0);
   t.min_radius = p.getDouble("min_radius", 3.0, 0.5, 1000.0);
+  t.perspective = p.getBool("perspective", true);
   return t;
 }
 
@@ -95,6 +140,26 @@ void ShapeCircle::applyTunables(const Tunables& t)
       line.dy_max = std::max(line.dy_max, dy);
     }
   }
+  // Where central difference t (samples t and t + 2) lies along the line: at sample t + 1.
+  difference_position_.assign(projection_.size(), 0.0f);
+  for (int k = 0; k < t.lines; ++k)
+    for (int j = 0; j + 1 < samples_per_line_; ++j)
+    {
+      const size_t idx = static_cast<size_t>(k) * samples_per_line_ + j;
+      difference_position_[idx] = projection_[idx + 1];
+    }
+  // Line directions as arrays for the vector code, padded to whole vectors with a harmless direction.
+  const size_t padded_lines = static_cast<size_t>((t.lines + kLines4 - 1) / kLines4) * kLines4;
+  line_c_.assign(padded_lines, 1.0f);
+  line_s_.assign(padded_lines, 0.0f);
+  for (int k = 0; k < t.lines; ++k)
+  {
+    line_c_[k] = lines_[k].c;
+    line_s_[k] = lines_[k].s;
+  }
+  start_x_.assign(padded_lines, 0);
+  start_y_.assign(padded_lines, 0);
+  start_e_.assign(padded_lines, 0.0f);
   offsets_stride_ = 0;  // rebuilt for the image stride at the next evaluate()
 
   // Distances up to the farthest sample plus a pixel (sub-pixel shifts and base rounding).
@@ -108,7 +173,7 @@ void ShapeCircle::applyTunables(const Tunables& t)
   {
     const double d = (i + 0.5) / kLutPerPixel;
     gauss_lut_[i] = static_cast<float>(norm * std::exp(-d * d / (2.0 * t.sigma * t.sigma)));
-    similarity_lut_[i] = static_cast<float>(std::exp(-d * d / (8.0 * t.sigma * t.sigma)));
+    similarity_lut_[i] = static_cast<float>(std::exp(-d * d / (2.0 * t.sigma * t.sigma)));
   }
   half_reciprocal_.resize(2 * 255 + 1);
   half_reciprocal_[0] = 0.0f;  // never used: a peak has 2b - a - c >= 1
@@ -195,6 +260,10 @@ void ShapeCircle::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eige
   const int threshold = std::clamp(static_cast<int>(std::ceil(tunables_.edge_threshold)), 1, 255);
   const float min_radius = static_cast<float>(tunables_.min_radius);
   const float r2d = static_cast<float>(radius2D());
+  const bool perspective = tunables_.perspective;
+  const float focal = static_cast<float>(cache.geometry().fx());
+  const float cx = static_cast<float>(cache.geometry().cx());
+  const float cy = static_cast<float>(cache.geometry().cy());
   // Farther than any sample can reach (rounding included): a circle this large cannot be half inside.
   const float max_radius = 2.0f * static_cast<float>(std::max(width, height));
   const int reach = half + 4;  // bound on |sample offset| + base rounding, px
@@ -203,11 +272,16 @@ void ShapeCircle::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eige
   const float* gauss = gauss_lut_.data();
   const float* sim_lut = similarity_lut_.data();
   const float* half_reciprocal = half_reciprocal_.data();
+  const float* line_c = line_c_.data();
+  const float* line_s = line_s_.data();
+  int* start_x = start_x_.data();
+  int* start_y = start_y_.data();
+  float* start_e = start_e_.data();
   uint8_t* intensity = intensity_.data();
   uint8_t* derivative = derivative_.data();
   const cv::v_uint8x16 v_threshold = cv::v_setall_u8(static_cast<uint8_t>(threshold));
-  // Bits 2 .. m - 3: the samples that may hold a peak.
-  const uint64_t peak_range = ((uint64_t{ 1 } << (m - 2)) - 1) & ~uint64_t{ 3 };
+  // Bits 1 .. m - 4: the differences that may be a peak (both neighbours exist).
+  const uint64_t peak_range = ((uint64_t{ 1 } << (m - 3)) - 1) & ~uint64_t{ 1 };
 
   for (int i = 0; i < n; ++i)
   {
@@ -215,37 +289,69 @@ void ShapeCircle::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eige
       continue;
     const float u = hyp.u[i];
     const float v = hyp.v[i];
-    const float r = hyp.radius[i] > 0.0f ? std::max(hyp.radius[i], min_radius) : r2d;
+    const bool is_3d = hyp.radius[i] > 0.0f;
+    const float r = is_3d ? std::max(hyp.radius[i], min_radius) : r2d;
     // Also rejects NaN radii and positions.
     if (!(r > 0.0f && r <= max_radius && std::abs(u) < 4.0f * width + max_radius &&
           std::abs(v) < 4.0f * height + max_radius))
       continue;
+    // The contour: a circle of radius r around (u, v), or for a 3D hypothesis the ellipse its sphere
+    // projects to. Along line k it lies at distance rho_k = a b / sqrt(b^2 cos^2 psi + a^2 sin^2 psi) from
+    // the centre (psi: the line's angle to the radial direction).
+    float cu = u, cv = v, ex = 1.0f, ey = 0.0f, a = r, b = r;
+    const bool ellipse = is_3d && perspective && sphereSilhouette(u, v, r, focal, cx, cy, cu, cv, ex, ey, a, b);
     // Fast path: the whole pattern is inside the image, no per-line bounds test.
-    const float extent = r + static_cast<float>(reach);
-    const bool all_inside = u - extent >= 0.0f && u + extent <= width - 1 && v - extent >= 0.0f &&
-                            v + extent <= height - 1;
+    const float extent = std::max(a, b) + static_cast<float>(reach);
+    const bool all_inside = cu - extent >= 0.0f && cu + extent <= width - 1 && cv - extent >= 0.0f &&
+                            cv + extent <= height - 1;
+    // Every line's contour point, rounded start pixel and rounding offset along the line, four lines per
+    // vector instruction (per line this would be a square root and a division each).
+    {
+      const cv::v_float32x4 v_cu = cv::v_setall_f32(cu), v_cv = cv::v_setall_f32(cv);
+      const cv::v_float32x4 v_ex = cv::v_setall_f32(ex), v_ey = cv::v_setall_f32(ey);
+      const cv::v_float32x4 v_ab = cv::v_setall_f32(a * b), v_a2 = cv::v_setall_f32(a * a);
+      const cv::v_float32x4 v_b2 = cv::v_setall_f32(b * b), v_r = cv::v_setall_f32(r);
+      for (int k = 0; k < k_lines; k += kLines4)
+      {
+        const cv::v_float32x4 c = cv::v_load(line_c + k), sn = cv::v_load(line_s + k);
+        cv::v_float32x4 rho = v_r;
+        if (ellipse)
+        {
+          const cv::v_float32x4 cos_psi = c * v_ex + sn * v_ey, sin_psi = sn * v_ex - c * v_ey;
+          rho = v_ab / cv::v_sqrt(v_b2 * cos_psi * cos_psi + v_a2 * sin_psi * sin_psi);
+        }
+        const cv::v_float32x4 bxf = v_cu + rho * c, byf = v_cv + rho * sn;
+        const cv::v_int32x4 bxi = cv::v_round(bxf), byi = cv::v_round(byf);
+        cv::v_store(start_x + k, bxi);
+        cv::v_store(start_y + k, byi);
+        cv::v_store(start_e + k, (cv::v_cvt_f32(bxi) - bxf) * c + (cv::v_cvt_f32(byi) - byf) * sn);
+      }
+    }
 
-    double product = 1.0;
+    double numerator = 1.0, denominator = 1.0, log_sum = 0.0;
     float similarity_sum = 0.0f;
     int inside = 0;
     for (int k = 0; k < k_lines; ++k)
     {
+      if (k > 0 && (k & (kLinesPerLog - 1)) == 0)
+      {
+        log_sum += std::log(numerator / denominator);
+        numerator = denominator = 1.0;
+      }
       const Line& line = lines_[k];
-      const float bxf = u + r * line.c;
-      const float byf = v + r * line.s;
-      const int bx = cvRound(bxf);
-      const int by = cvRound(byf);
+      const int bx = start_x[k];
+      const int by = start_y[k];
       if (!all_inside && (bx + line.dx_min < 0 || bx + line.dx_max >= width || by + line.dy_min < 0 ||
                           by + line.dy_max >= height))
         continue;  // a line leaving the image tells nothing: factor 1
       ++inside;
       const uint8_t* base = data + static_cast<std::ptrdiff_t>(by) * static_cast<std::ptrdiff_t>(stride) + bx;
       const std::ptrdiff_t* off = &offsets_[static_cast<size_t>(k) * offsets_row_];
-      // The 1-D edge detector: central differences along the line, D[j] = |I[j + 1] - I[j - 1]|. Peaks
-      // are local maxima at least `threshold` high within L of the contour point (samples 2 .. m - 3; the
-      // outer derivatives only guard the ends: a maximum there may be a slope continuing outside the
-      // line). Both run 16 samples per vector instruction into a bit mask of peaks (done one by one they
-      // cost most of the time); the few peaks are then visited bit by bit.
+      // The 1-D edge detector: central differences along the line, D[t] = |I[t + 2] - I[t]|, located at
+      // sample t + 1 (between the pixels it compares). Peaks are local maxima at least `threshold` high
+      // within L of the contour point (t = 1 .. m - 4: both neighbours exist). Both steps run 16 samples per
+      // vector instruction into a bit mask of peaks (done one by one they cost most of the time); the few
+      // peaks are then visited bit by bit.
       uint64_t peaks = 0;
       if (m <= kLanes)
       {
@@ -257,57 +363,60 @@ void ShapeCircle::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eige
         for (int j = 8; j < kLanes; ++j)
           hi |= static_cast<uint64_t>(base[off[j]]) << (8 * (j - 8));
         const cv::v_uint8x16 in = cv::v_reinterpret_as_u8(cv::v_uint64x2(lo, hi));
-        // Lane t holds D[t + 1].
-        const cv::v_uint8x16 d = cv::v_absdiff(cv::v_rotate_right<2>(in), in);
+        const cv::v_uint8x16 d = cv::v_absdiff(cv::v_rotate_right<2>(in), in);  // lane t: D[t]
         const cv::v_uint8x16 is_peak =
             (d >= v_threshold) & (d > cv::v_rotate_left<1>(d)) & (d >= cv::v_rotate_right<1>(d));
-        peaks = static_cast<uint64_t>(static_cast<unsigned>(cv::v_signmask(is_peak))) << 1;
-        cv::v_store(derivative + 1, d);  // for the peaks' sub-pixel positions (read back byte by byte)
+        peaks = static_cast<uint64_t>(static_cast<unsigned>(cv::v_signmask(is_peak)));
+        cv::v_store(derivative, d);  // for the peaks' sub-pixel positions (read back byte by byte)
       }
       else
       {
         for (int j = 0; j < m; ++j)
           intensity[j] = base[off[j]];
         for (int c = 0; c < m; c += kLanes)
-          cv::v_store(derivative + c + 1, cv::v_absdiff(cv::v_load(intensity + c + 2), cv::v_load(intensity + c)));
+          cv::v_store(derivative + c, cv::v_absdiff(cv::v_load(intensity + c + 2), cv::v_load(intensity + c)));
         for (int c = 0; c < m; c += kLanes)
         {
-          const cv::v_uint8x16 b = cv::v_load(derivative + c + 2);
-          const cv::v_uint8x16 is_peak = (b >= v_threshold) & (b > cv::v_load(derivative + c + 1)) &
-                                         (b >= cv::v_load(derivative + c + 3));
-          peaks |= static_cast<uint64_t>(static_cast<unsigned>(cv::v_signmask(is_peak))) << (c + 2);
+          const cv::v_uint8x16 b = cv::v_load(derivative + c + 1);
+          const cv::v_uint8x16 is_peak = (b >= v_threshold) & (b > cv::v_load(derivative + c)) &
+                                         (b >= cv::v_load(derivative + c + 2));
+          peaks |= static_cast<uint64_t>(static_cast<unsigned>(cv::v_signmask(is_peak))) << (c + 1);
         }
       }
       peaks &= peak_range;
       if (peaks == 0)
         continue;  // the clutter term alone: factor 1
       // Where the rounded start lies along the line relative to the true contour point.
-      const float e = (static_cast<float>(bx) - bxf) * line.c + (static_cast<float>(by) - byf) * line.s;
-      const float* proj = &projection_[static_cast<size_t>(k) * m];
+      const float e = start_e[k];
+      const float* position = &difference_position_[static_cast<size_t>(k) * m];
       int sum_w = 0;
-      float sum_wg = 0.0f, best = 0.0f;
+      float sum_wg = 0.0f, sum_ws = 0.0f;
       for (; peaks != 0; peaks &= peaks - 1)
       {
         const int j = __builtin_ctzll(peaks);
         const int a = derivative[j - 1], b = derivative[j], c = derivative[j + 1];
-        // Vertex of the parabola through the three derivatives: delta = (c - a) / (2 (2b - a - c)). At a
-        // peak (b > a, b >= c) the denominator is in [1, 510] and |delta| <= 1/2: a table replaces the division.
+        // Vertex of the parabola through the three differences: delta = (c - a) / (2 (2b - a - c)). At a
+        // peak (b > a, b >= c) the denominator is in [1, 510] and |delta| <= 1/2: a table replaces the
+        // division.
         const float delta = static_cast<float>(c - a) * half_reciprocal[2 * b - a - c];
-        // Sub-pixel position along the line, interpolated between the samples on the side of the shift.
-        const float where = proj[j] + delta * (delta > 0.0f ? proj[j + 1] - proj[j] : proj[j] - proj[j - 1]);
+        // Sub-pixel position along the line, interpolated towards the neighbour on the side of the shift.
+        const float where =
+            position[j] + delta * (delta > 0.0f ? position[j + 1] - position[j] : position[j] - position[j - 1]);
         const float d = std::abs(e + where);
         const int idx = std::min(static_cast<int>(d * lut_scale), lut_last);
         sum_w += b;
         sum_wg += static_cast<float>(b) * gauss[idx];
-        best = std::max(best, sim_lut[idx]);
+        sum_ws += static_cast<float>(b) * sim_lut[idx];
       }
-      if (sum_w > 0)
-        product *= 1.0 + line.gain * static_cast<double>(sum_wg / static_cast<float>(sum_w));
-      similarity_sum += best;
+      // p_k / (q0 U) = 1 + gain sum_i w_i N(d_i) with w_i = b_i / sum_w: kept as a fraction, numerator and
+      // denominator multiplied up separately (no division per line; both stay far inside double range).
+      numerator *= static_cast<double>(sum_w) + line.gain * static_cast<double>(sum_wg);
+      denominator *= static_cast<double>(sum_w);
+      similarity_sum += sum_ws / static_cast<float>(sum_w);
     }
     if (inside < min_inside)
       continue;
-    log_likelihood[i] = std::log(product);
+    log_likelihood[i] = log_sum + std::log(numerator / denominator);
     similarity[i] = similarity_sum / inside;
   }
 }

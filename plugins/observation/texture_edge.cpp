@@ -92,9 +92,10 @@ int EdgeBinner::bin(int sx, int sy) const
   const int m2 = sx * sx + sy * sy;
   if (binning_.mode == EdgeBinning::Mode::Intensity)
   {
-    // The same float operations, in the same order, as the vector code in binImage().
+    // The same float operations, in the same order, as the vector code in binImage(). Truncation equals
+    // floor wherever the clamp does not apply.
     const float t = std::sqrt(static_cast<float>(m2)) * inv_step_ + offset_;
-    return std::clamp(static_cast<int>(std::floor(t)), 0, binning_.intensity_bins);
+    return std::clamp(static_cast<int>(t), 0, binning_.intensity_bins);
   }
   if (m2 < tau2_)
     return EdgeBinning::kNoEdge;
@@ -124,14 +125,15 @@ void EdgeBinner::binImage(const cv::Mat& gray, cv::Mat& bins) const
   int16_t* d = diff.data() + 1;
   const bool intensity = binning_.mode == EdgeBinning::Mode::Intensity;
   const cv::v_float32x4 v_inv = cv::v_setall_f32(inv_step_), v_off = cv::v_setall_f32(offset_);
-  const cv::v_int32x4 v_top = cv::v_setall_s32(binning_.intensity_bins), v_zero = cv::v_setzero_s32();
+  const cv::v_uint8x16 v_top = cv::v_setall_u8(static_cast<uint8_t>(intensity ? binning_.intensity_bins : 3));
   const cv::v_int32x4 v_tau2 = cv::v_setall_s32(tau2_), v_three = cv::v_setall_s32(3);
   const cv::v_int16x8 v_1000 = cv::v_setall_s16(1000), v_tan67 = cv::v_setall_s16(kTan67Milli);
   const cv::v_int16x8 v_tan22 = cv::v_setall_s16(kTan22Milli);
-  // Intensity bins of 4 pixels from |S|^2: the float operations of bin(), lane by lane.
+  // Intensity bins of 4 pixels from |S|^2: the float operations of bin(), lane by lane, truncated. The
+  // clamp to [0, bins] is left to the saturating packs (negative -> 0; truncation and floor differ only
+  // there) and one u8 minimum per 16 pixels: SSE2 has no 32-bit minimum, maximum or floor.
   auto intensityBins = [&](const cv::v_int32x4& m2) {
-    const cv::v_float32x4 t = cv::v_sqrt(cv::v_cvt_f32(m2)) * v_inv + v_off;
-    return cv::v_max(cv::v_min(cv::v_floor(t), v_top), v_zero);
+    return cv::v_trunc(cv::v_sqrt(cv::v_cvt_f32(m2)) * v_inv + v_off);
   };
   // Orientation bins of 4 pixels: with the masks h, v in {0, -1}, 3 + 2h + v is 1 (horizontal),
   // 2 (vertical) or 3 (diagonal); and-ed with the edge mask, 0 without an edge.
@@ -200,7 +202,7 @@ void EdgeBinner::binImage(const cv::Mat& gray, cv::Mat& bins) const
               cv::v_pack(orientationBins(m2_0, ay0, ax67_0, ax22_0), orientationBins(m2_1, ay1, ax67_1, ax22_1));
         }
       }
-      cv::v_store(out + x, cv::v_pack_u(packed[0], packed[1]));
+      cv::v_store(out + x, cv::v_min(cv::v_pack_u(packed[0], packed[1]), v_top));
     }
     for (; x < w; ++x)
       out[x] = static_cast<uint8_t>(bin(s[x + 1] - s[x - 1], d[x - 1] + 2 * d[x] + d[x + 1]));

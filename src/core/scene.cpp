@@ -72,6 +72,27 @@ bool sphereBox(const SceneCamera& cam, const Eigen::Vector3d& c_rel, double r, P
          sphereExtent(c_rel.y(), c_rel.z(), r, cam.fy, cam.cy, box.v0, box.v1);
 }
 
+// Pixel box of a square patch facing the camera (normal along -z), centre c_rel relative to the camera,
+// half side r: an axis-aligned rectangle at constant depth.
+bool squareBox(const SceneCamera& cam, const Eigen::Vector3d& c_rel, double r, PixelBox& box)
+{
+  const double z = c_rel.z();
+  if (z <= 1e-3)
+    return false;  // behind the camera (or at it): not rendered
+  box.u0 = cam.cx + cam.fx * (c_rel.x() - r) / z;
+  box.u1 = cam.cx + cam.fx * (c_rel.x() + r) / z;
+  box.v0 = cam.cy + cam.fy * (c_rel.y() - r) / z;
+  box.v1 = cam.cy + cam.fy * (c_rel.y() + r) / z;
+  return true;
+}
+
+// Image extent of any scene object.
+bool objectBox(const SceneCamera& cam, const SceneSphere& s, const Eigen::Vector3d& c_rel, PixelBox& box)
+{
+  return s.shape == SceneSphere::Shape::Square ? squareBox(cam, c_rel, s.radius, box) :
+                                                 sphereBox(cam, c_rel, s.radius, box);
+}
+
 // Nearest positive ray parameter where origin + t * dir enters the sphere, or +inf.
 double raySphere(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, const Eigen::Vector3d& centre, double r)
 {
@@ -86,6 +107,28 @@ double raySphere(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, cons
   if (t > 1e-9)
     return t;
   return proj + half > 1e-9 ? proj + half : std::numeric_limits<double>::infinity();
+}
+
+// Ray parameter where origin + t * dir hits a square facing the camera (centre, half side r), or +inf.
+double raySquare(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, const Eigen::Vector3d& centre, double r)
+{
+  if (std::abs(dir.z()) < 1e-12)
+    return std::numeric_limits<double>::infinity();
+  const double t = (centre.z() - origin.z()) / dir.z();
+  if (!(t > 1e-9))
+    return std::numeric_limits<double>::infinity();
+  const Eigen::Vector3d p = origin + t * dir;
+  return std::abs(p.x() - centre.x()) <= r && std::abs(p.y() - centre.y()) <= r ?
+             t :
+             std::numeric_limits<double>::infinity();
+}
+
+// Ray parameter of the first hit with any scene object at its position `centre`, or +inf.
+double rayObject(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, const SceneSphere& s,
+                 const Eigen::Vector3d& centre)
+{
+  return s.shape == SceneSphere::Shape::Square ? raySquare(origin, dir, centre, s.radius) :
+                                                 raySphere(origin, dir, centre, s.radius);
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -655,10 +698,12 @@ SceneDescription loadScene(const std::string& path)
     const cv::FileNode n = *it;
     const std::string f = "objects[" + std::to_string(index) + "]";
     r.checkKeys(n, f,
-                { "name", "radius", "colour", "pattern", "colour2", "checker_squares", "spin_deg_per_s", "string",
-                  "trajectory", "t_enter", "t_leave" });
+                { "name", "shape", "radius", "colour", "pattern", "colour2", "checker_squares", "spin_deg_per_s",
+                  "string", "trajectory", "t_enter", "t_leave" });
     SceneSphere s;
     s.name = r.text(n, f, "name", index == 0 ? "target" : "object" + std::to_string(index));
+    s.shape = r.text(n, f, "shape", "sphere", { "sphere", "square" }) == "square" ? SceneSphere::Shape::Square :
+                                                                                    SceneSphere::Shape::Sphere;
     s.radius = r.number(n, f, "radius", s.radius, 1e-4, 100.0);
     s.colour = r.colour(n, f, "colour", s.colour);
     s.checkered = r.text(n, f, "pattern", "plain", { "plain", "checker" }) == "checker";
@@ -897,8 +942,14 @@ void SceneRenderer::renderView(int k, View view, cv::Mat& bgr, bool with_noise)
   backdrop_depth_[v].copyTo(depth_);
   drawOccluders(t, view, bgr, depth_);
   for (const SceneSphere& s : scene_.objects)
-    if (s.trajectory.present(t))
+  {
+    if (!s.trajectory.present(t))
+      continue;
+    if (s.shape == SceneSphere::Shape::Square)
+      drawSquare(s, t, view, bgr, depth_);
+    else
       drawSphere(s, t, view, bgr, depth_);
+  }
   // Strings after the balls so the depth test hides the part inside the ball.
   for (const SceneSphere& s : scene_.objects)
     if (s.draw_string && s.trajectory.present(t))
@@ -1013,6 +1064,54 @@ void SceneRenderer::drawSphere(const SceneSphere& s, double t, View view, cv::Ma
   }
 }
 
+void SceneRenderer::drawSquare(const SceneSphere& s, double t, View view, cv::Mat& img, cv::Mat& depth) const
+{
+  const SceneCamera& cam = scene_.camera;
+  const Eigen::Vector3d c = s.trajectory.at(t) - cameraOrigin(view);
+  PixelBox box;
+  if (!squareBox(cam, c, s.radius, box))
+    return;
+  const int u0 = std::max(0, static_cast<int>(std::floor(box.u0)));
+  const int u1 = std::min(cam.width - 1, static_cast<int>(std::ceil(box.u1)));
+  const int v0 = std::max(0, static_cast<int>(std::floor(box.v0)));
+  const int v1 = std::min(cam.height - 1, static_cast<int>(std::ceil(box.v1)));
+  const double z = c.z();
+  const float zf = static_cast<float>(z);
+  // A flat face has one normal (-z), so one Lambertian shade for the whole patch.
+  const double shade = scene_.light.ambient + (1.0 - scene_.light.ambient) * std::max(0.0, -light_.z());
+  const double side = 2.0 * s.radius;
+  for (int row = v0; row <= v1; ++row)
+  {
+    // Edge pixels get their area coverage as alpha, as the occluders do.
+    const double ay = std::clamp(std::min(row + 0.5, box.v1) - std::max(row - 0.5, box.v0), 0.0, 1.0);
+    if (ay <= 0.0)
+      continue;
+    // Pattern coordinates of the pixel centre on the patch, in [0, 1) from its top-left corner.
+    const double py = ((row - cam.cy) / cam.fy * z - c.y() + s.radius) / side;
+    const long j = static_cast<long>(std::floor(std::clamp(py, 0.0, 0.999999) * s.checker_latitude));
+    cv::Vec3b* px = img.ptr<cv::Vec3b>(row);
+    float* dp = depth.ptr<float>(row);
+    for (int col = u0; col <= u1; ++col)
+    {
+      const double a = ay * std::clamp(std::min(col + 0.5, box.u1) - std::max(col - 0.5, box.u0), 0.0, 1.0);
+      if (a <= 0.0 || zf >= dp[col])
+        continue;
+      cv::Vec3d albedo = s.colour;
+      if (s.checkered)
+      {
+        const double pxl = ((col - cam.cx) / cam.fx * z - c.x() + s.radius) / side;
+        const long i = static_cast<long>(std::floor(std::clamp(pxl, 0.0, 0.999999) * s.checker_longitude));
+        if ((i + j) % 2 == 1)
+          albedo = s.colour2;
+      }
+      for (int ch = 0; ch < 3; ++ch)
+        px[col][ch] = cv::saturate_cast<uint8_t>(a * shade * albedo[ch] + (1.0 - a) * px[col][ch]);
+      if (a >= 0.5)
+        dp[col] = zf;
+    }
+  }
+}
+
 void SceneRenderer::drawString(const SceneSphere& s, double t, View view, cv::Mat& img, const cv::Mat& depth) const
 {
   if (s.trajectory.type != Trajectory::Type::Pendulum)
@@ -1070,7 +1169,7 @@ double SceneRenderer::nearestOtherHit(size_t i, double t, const Eigen::Vector3d&
   {
     const SceneSphere& s = scene_.objects[j];
     if (j != i && s.trajectory.present(t))
-      best = std::min(best, raySphere(origin, dir, s.trajectory.at(t), s.radius));
+      best = std::min(best, rayObject(origin, dir, s, s.trajectory.at(t)));
   }
   for (const SceneOccluder& o : scene_.occluders)
   {
@@ -1097,7 +1196,7 @@ double SceneRenderer::visibleFraction(size_t i, int k, View view) const
   const Eigen::Vector3d origin = cameraOrigin(view);
   const Eigen::Vector3d centre = s.trajectory.at(t);
   PixelBox box;
-  if (!sphereBox(cam, centre - origin, s.radius, box))
+  if (!objectBox(cam, s, centre - origin, box))
     return 0.0;
   // Sample the silhouette on a grid of at most ~48 x 48 rays: plenty for a 50 % decision.
   const double step = std::max(1.0, std::max(box.u1 - box.u0, box.v1 - box.v0) / 48.0);
@@ -1107,7 +1206,7 @@ double SceneRenderer::visibleFraction(size_t i, int k, View view) const
     for (double u = box.u0 + step / 2; u < box.u1; u += step)
     {
       const Eigen::Vector3d dir((u - cam.cx) / cam.fx, (v - cam.cy) / cam.fy, 1.0);
-      const double hit = raySphere(origin, dir, centre, s.radius);
+      const double hit = rayObject(origin, dir, s, centre);
       if (!std::isfinite(hit))
         continue;
       ++total;
@@ -1126,7 +1225,7 @@ cv::Rect SceneRenderer::objectRoi(size_t i, int k, View view) const
   if (!s.trajectory.present(t))
     return cv::Rect();
   PixelBox box;
-  if (!sphereBox(scene_.camera, s.trajectory.at(t) - cameraOrigin(view), s.radius, box))
+  if (!objectBox(scene_.camera, s, s.trajectory.at(t) - cameraOrigin(view), box))
     return cv::Rect();
   // Pixels whose centres lie inside the silhouette's extent.
   const int x0 = static_cast<int>(std::ceil(box.u0)), x1 = static_cast<int>(std::floor(box.u1));

@@ -1,5 +1,5 @@
-// Synthetic stereo scenes: a YAML description (camera, shaded balls on trajectories, background,
-// occluders, sensor noise) and a ray-casting renderer of the rectified pair with ground truth.
+// Synthetic stereo scenes: a YAML description (camera, shaded balls and square patches on trajectories,
+// background, occluders, sensor noise) and a ray-casting renderer of the rectified pair with ground truth.
 // ROS-free; the `make_scene` tool writes the result into a bag.
 #pragma once
 
@@ -89,17 +89,27 @@ struct Trajectory
                            const Eigen::Vector3d& box_min, const Eigen::Vector3d& box_max);
 };
 
-/// A shaded ball. The first one of a scene is the tracking target.
+/// A scene object: a shaded ball, or a flat square patch facing the camera. The first one of a scene is
+/// the tracking target.
 struct SceneSphere
 {
+  /// Geometry of the object.
+  enum class Shape
+  {
+    Sphere,  ///< a ball of `radius`
+    Square   ///< a flat square facing the camera (normal along -z), side 2 * `radius`, edges along x and y
+  };
+
   std::string name;                           ///< label (for messages)
-  double radius = 0.035;                      ///< metres
+  Shape shape = Shape::Sphere;                ///< geometry
+  double radius = 0.035;                      ///< metres (a square's half side)
   cv::Vec3d colour = cv::Vec3d(20, 120, 255);  ///< BGR 0..255 of a fully lit surface point (default orange)
-  bool checkered = false;                     ///< checker pattern in longitude/latitude instead of plain colour
+  bool checkered = false;                     ///< checker pattern (ball: longitude/latitude) instead of plain colour
   cv::Vec3d colour2 = cv::Vec3d(255, 255, 255);  ///< BGR of the other checker squares
-  int checker_longitude = 8;                  ///< checker squares around the equator (even keeps the seam clean)
-  int checker_latitude = 4;                   ///< checker squares from pole to pole
-  double spin = 0.0;                          ///< rotation of the pattern about the vertical axis, rad/s
+  int checker_longitude = 8;                  ///< checker squares around the equator (even keeps the seam clean);
+                                              ///< square: checker squares along x
+  int checker_latitude = 4;                   ///< checker squares from pole to pole; square: along y (1: stripes)
+  double spin = 0.0;                          ///< rotation of a ball's pattern about the vertical axis, rad/s
   bool draw_string = false;                   ///< draw a thin dark string to the pivot (pendulum only)
   Trajectory trajectory;                      ///< motion of the centre and presence window
 };
@@ -151,7 +161,7 @@ struct SceneDescription
   SceneCamera camera;                    ///< stereo camera
   SceneLight light;                      ///< shading
   SceneBackground background;            ///< backdrop
-  std::vector<SceneSphere> objects;      ///< balls; objects[0] is the target (at least one)
+  std::vector<SceneSphere> objects;      ///< balls and square patches; objects[0] is the target (at least one)
   std::vector<SceneOccluder> occluders;  ///< rectangles in front of the balls
   double fps = 30.0;                     ///< frame rate, Hz
   int frames = 300;                      ///< number of stereo frames
@@ -201,8 +211,8 @@ public:
   Eigen::Vector3d objectPosition(size_t i, int k) const;
   /// True when object i exists at frame k.
   bool objectPresent(size_t i, int k) const;
-  /// Fraction [0, 1] of object i's projected disc in `view` that is inside the image and not hidden by
-  /// a nearer object or occluder (0 when absent or behind the camera).
+  /// Fraction [0, 1] of object i's projected silhouette (disc or square) in `view` that is inside the
+  /// image and not hidden by a nearer object or occluder (0 when absent or behind the camera).
   double visibleFraction(size_t i, int k, View view) const;
   /// Bounding box of object i's projection in `view` (pixels whose centres fall inside the silhouette's
   /// extent), clipped to the image; empty when absent, behind the camera or out of view. Occlusion is
@@ -223,6 +233,8 @@ private:
   void drawOccluders(double t, View view, cv::Mat& img, cv::Mat& depth) const;
   /// Ray-cast one ball inside its projected bounding box, shaded, with an anti-aliased rim.
   void drawSphere(const SceneSphere& s, double t, View view, cv::Mat& img, cv::Mat& depth) const;
+  /// Draw one flat square object (constant shading, pattern, area-coverage anti-aliased edges).
+  void drawSquare(const SceneSphere& s, double t, View view, cv::Mat& img, cv::Mat& depth) const;
   /// Draw a pendulum ball's string as depth-tested samples of the 3D segment pivot-centre.
   void drawString(const SceneSphere& s, double t, View view, cv::Mat& img, const cv::Mat& depth) const;
   /// Add Gaussian noise seeded from (seed, k, view).

@@ -20,8 +20,8 @@ namespace stereo_pf
 /// per step along its dominant axis (a digital line). The 1-D edge detector along a line is the central
 /// difference |I(j + 1) - I(j - 1)| of the 8-bit grey image I along it (the derivative along the line); its
 /// peaks are local maxima of at least `edge_threshold` grey levels within L of the contour point, located
-/// to a fraction of a pixel by a parabola through the three derivatives around them. Line k then gives
-/// (eq. 5.10)
+/// to a fraction of a pixel by a parabola through the three differences around them (unbiased to ~0.1 px
+/// on an exactly anti-aliased disc). Line k then gives (eq. 5.10)
 ///   p_k = q0 U + (1 - q0) sum_i w_i N(d_i; 0, sigma),
 /// with d_i the distance of peak i from the contour point along the line, w_i its strength normalised over
 /// the line's peaks, U the uniform density over the line and q0 (`q0`) the prior that no peak is the
@@ -31,12 +31,22 @@ namespace stereo_pf
 /// reward for looking outside the image. It is therefore >= 0 and 0 means "no contour evidence".
 /// The product is formed in double (each factor is bounded) and logged once per hypothesis.
 ///
-/// Similarity: the mean over the lines inside the image of max_i exp(-d_i^2 / (2 (2 sigma)^2)), i.e. the
-/// (smoothed) fraction of lines with a peak within about 2 sigma of the contour.
+/// Similarity: the mean over the lines inside the image of sum_i w_i exp(-d_i^2 / (2 sigma^2)) (0 for a
+/// line without peaks): the mixture's contour term scaled to 1 for a single peak exactly on the contour.
+/// A line scores high only when its edge evidence is concentrated near the contour, so clutter, which
+/// puts some peak near any contour but rarely only there, scores low.
 ///
 /// Radius: 3D hypotheses (radius > 0) use their apparent radius, at least `min_radius`. 2D hypotheses
 /// (radius <= 0, stereo-constraints sets) use the parameter `radius` when > 0, otherwise the radius learned
 /// by learnTarget(): half the smaller side of the region of interest.
+///
+/// Perspective (`perspective`, default true): a sphere off the optical axis does not image as a circle but
+/// as an ellipse elongated away from the principal point (by 1 / cos(theta): 6 % at 20 deg off the axis),
+/// and a circle fits it best with a larger radius, which a 3D state model reads as a closer depth (about
+/// 2.5 cm at 1.1 m on the pendulum). So for 3D hypotheses, whose radius is f R / z by the state models'
+/// convention, the contour is that ellipse (from the frame's focal length fx and principal point; square
+/// pixels assumed) and the lines stay radial from its centre. 2D hypotheses keep the circle (their radius
+/// is an image measurement).
 ///
 /// Invalid hypotheses (valid == 0, non-finite position, no usable radius, or fewer than half of the lines
 /// inside the image) get log-likelihood 0 and similarity 0.
@@ -48,7 +58,8 @@ namespace stereo_pf
 ///
 /// Parameters (in the plugin's namespace, all re-read by reconfigure()): lines (16, 3..256),
 /// line_half_length (5 px, 1..25), sigma (1.5 px, 0.1..50), q0 (0.1, 0.001..0.999), edge_threshold
-/// (10 grey levels, 0..255), radius (0 = learn from the region of interest; px, 0..2000), min_radius (3 px, 0.5..1000).
+/// (16 grey levels, 0..255), radius (0 = learn from the region of interest; px, 0..2000), min_radius (3 px,
+/// 0.5..1000), perspective (true).
 class ShapeCircle : public ObservationModel
 {
 public:
@@ -89,9 +100,10 @@ private:
     int line_half_length = 5;
     double sigma = 1.5;
     double q0 = 0.1;
-    double edge_threshold = 10.0;
+    double edge_threshold = 16.0;
     double radius = 0.0;
     double min_radius = 3.0;
+    bool perspective = true;
   };
   /// Geometry of one measurement line (independent of the hypothesis).
   struct Line
@@ -113,13 +125,19 @@ private:
   std::vector<Line> lines_;
   std::vector<int> dx_, dy_;            // [k * samples_per_line_ + j]: pixel offset of sample j of line k
   std::vector<float> projection_;       // the same offset projected on the line's direction, px
-  std::vector<std::ptrdiff_t> offsets_;  // the same as element offsets dy * stride + dx
+  std::vector<float> difference_position_;  // where central difference t lies along the line (sample t + 1), px
+  std::vector<std::ptrdiff_t> offsets_;  // the same as byte offsets dy * stride + dx, offsets_row_ per line
+  int offsets_row_ = 0;                 // entries per line in offsets_: max(samples_per_line_, 16)
   size_t offsets_stride_ = 0;           // stride offsets_ was built for (0: not built)
   float lut_scale_ = 1.0f;              // table entries per pixel of distance
   std::vector<float> gauss_lut_;        // N(d; 0, sigma) by quantised |d|
-  std::vector<float> similarity_lut_;   // exp(-d^2 / (2 (2 sigma)^2)) by quantised |d|
+  std::vector<float> similarity_lut_;   // exp(-d^2 / (2 sigma^2)) by quantised |d|
+  std::vector<float> half_reciprocal_;  // 1 / (2 x) for x = 0 .. 510 (sub-pixel peak positions)
+  std::vector<float> line_c_, line_s_;  // cos, sin theta_k, padded to a multiple of 4 lines
+  std::vector<int> start_x_, start_y_;  // scratch: rounded contour point of each line of one hypothesis
+  std::vector<float> start_e_;          // scratch: its rounding offset along the line, px
   std::vector<uint8_t> intensity_;      // scratch: grey levels along one line (padded for vector loads)
-  std::vector<uint8_t> derivative_;     // scratch: their central differences
+  std::vector<uint8_t> derivative_;     // scratch: central differences of the samples
 };
 
 }  // namespace stereo_pf
