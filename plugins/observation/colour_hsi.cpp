@@ -17,12 +17,6 @@ namespace
 // a histogram of a few border pixels is too noisy to compare.
 constexpr int kMinInsideDenominator = 4;  // 1/4
 
-std::string rectText(const cv::Rect& r)
-{
-  std::ostringstream s;
-  s << r.width << "x" << r.height << " at (" << r.x << ", " << r.y << ")";
-  return s.str();
-}
 }  // namespace
 
 void ColourHSI::onInitialize()
@@ -122,40 +116,17 @@ double ColourHSI::targetProbability(int bin) const
 
 bool ColourHSI::learnTarget(FeatureCache& cache, View view, const cv::Rect& roi, std::string& error)
 {
-  const cv::Mat& image = cache.image(view);
-  if (image.empty())
+  cv::Rect inner;
+  std::string reason;
+  if (!targetRegion(cache.image(view).size(), roi, tunables_.target_margin, inner, reason))
   {
-    error = name() + ": cannot learn the target: the frame has no image in this view";
-    return false;
-  }
-  if (roi.width <= 0 || roi.height <= 0)
-  {
-    error = name() + ": cannot learn the target: the region " + rectText(roi) + " is empty";
-    return false;
-  }
-  const cv::Rect bounds(0, 0, image.cols, image.rows);
-  if ((roi & bounds).empty())
-  {
-    error = name() + ": cannot learn the target: the region " + rectText(roi) + " lies outside the " +
-            std::to_string(image.cols) + "x" + std::to_string(image.rows) + " image";
-    return false;
-  }
-  // Shrink relative to the object's box first, then clip: the margin is about the object's outline
-  // (background corners of a ball's bounding box), not about the image border.
-  const int mx = static_cast<int>(std::lround(roi.width * tunables_.target_margin));
-  const int my = static_cast<int>(std::lround(roi.height * tunables_.target_margin));
-  const cv::Rect inner = cv::Rect(roi.x + mx, roi.y + my, roi.width - 2 * mx, roi.height - 2 * my) & bounds;
-  if (inner.width < 3 || inner.height < 3)
-  {
-    error = name() + ": cannot learn the target: the region " + rectText(roi) + " leaves only " +
-            rectText(inner) + " inside the image after the target_margin of " +
-            std::to_string(tunables_.target_margin) + " per side (at least 3x3 pixels needed)";
+    error = name() + ": cannot learn the target: " + reason;
     return false;
   }
   TargetHistogram t = TargetHistogram::fromBinImage(binImage(cache, view), inner, binning_.bins());
   if (!t.valid())
   {
-    error = name() + ": cannot learn the target: no pixel of " + rectText(inner) + " could be binned";
+    error = name() + ": cannot learn the target: no pixel of " + describeRect(inner) + " could be binned";
     return false;
   }
   target_ = std::move(t);

@@ -1,5 +1,6 @@
 // Circle-contour observation model (thesis eq. 5.8-5.11); see include/stereo_pf/plugins/shape_circle.h.
 #include "stereo_pf/plugins/shape_circle.h"
+#include "stereo_pf/core/histogram.h"
 
 #include <algorithm>
 #include <cmath>
@@ -64,12 +65,6 @@ bool sphereSilhouette(float u, float v, float r, float f, float cx, float cy, fl
   return true;
 }
 
-std::string rectText(const cv::Rect& r)
-{
-  std::ostringstream s;
-  s << r.width << "x" << r.height << " at (" << r.x << ", " << r.y << ")";
-  return s.str();
-}
 }  // namespace
 
 void ShapeCircle::onInitialize()
@@ -220,7 +215,7 @@ bool ShapeCircle::learnTarget(FeatureCache& cache, View view, const cv::Rect& ro
   const cv::Rect inside = roi & cv::Rect(0, 0, image.cols, image.rows);
   if (roi.width <= 0 || roi.height <= 0 || inside.empty())
   {
-    error = name() + ": cannot learn the radius: the region " + rectText(roi) + " is empty or outside the " +
+    error = name() + ": cannot learn the radius: the region " + describeRect(roi) + " is empty or outside the " +
             std::to_string(image.cols) + "x" + std::to_string(image.rows) + " image";
     return false;
   }

@@ -26,13 +26,6 @@ constexpr int kTan22Milli = 414;
 constexpr int kLanes16 = cv::v_uint8x16::nlanes;
 constexpr int kLanes8 = cv::v_int16x8::nlanes;
 
-std::string rectText(const cv::Rect& r)
-{
-  std::ostringstream s;
-  s << r.width << "x" << r.height << " at (" << r.x << ", " << r.y << ")";
-  return s.str();
-}
-
 // Enough digits that different settings never share a cache key or pass as the same binning.
 std::string number(double v)
 {
@@ -284,40 +277,17 @@ const cv::Mat& TextureEdge::binImage(FeatureCache& cache, View view)
 
 bool TextureEdge::learnTarget(FeatureCache& cache, View view, const cv::Rect& roi, std::string& error)
 {
-  const cv::Mat& image = cache.image(view);
-  if (image.empty())
+  cv::Rect inner;
+  std::string reason;
+  if (!targetRegion(cache.image(view).size(), roi, tunables_.target_margin, inner, reason))
   {
-    error = name() + ": cannot learn the target: the frame has no image in this view";
-    return false;
-  }
-  if (roi.width <= 0 || roi.height <= 0)
-  {
-    error = name() + ": cannot learn the target: the region " + rectText(roi) + " is empty";
-    return false;
-  }
-  const cv::Rect bounds(0, 0, image.cols, image.rows);
-  if ((roi & bounds).empty())
-  {
-    error = name() + ": cannot learn the target: the region " + rectText(roi) + " lies outside the " +
-            std::to_string(image.cols) + "x" + std::to_string(image.rows) + " image";
-    return false;
-  }
-  // Shrink relative to the object's box, then clip (as ColourHSI): with the default margin the box of a
-  // ball becomes the square of half-size 0.7 r that a 3D hypothesis samples, inside the ball's rim.
-  const int mx = static_cast<int>(std::lround(roi.width * tunables_.target_margin));
-  const int my = static_cast<int>(std::lround(roi.height * tunables_.target_margin));
-  const cv::Rect inner = cv::Rect(roi.x + mx, roi.y + my, roi.width - 2 * mx, roi.height - 2 * my) & bounds;
-  if (inner.width < 3 || inner.height < 3)
-  {
-    error = name() + ": cannot learn the target: the region " + rectText(roi) + " leaves only " +
-            rectText(inner) + " inside the image after the target_margin of " +
-            std::to_string(tunables_.target_margin) + " per side (at least 3x3 pixels needed)";
+    error = name() + ": cannot learn the target: " + reason;
     return false;
   }
   TargetHistogram t = TargetHistogram::fromBinImage(binImage(cache, view), inner, binning_.bins());
   if (!t.valid())
   {
-    error = name() + ": cannot learn the target: no pixel of " + rectText(inner) + " could be binned";
+    error = name() + ": cannot learn the target: no pixel of " + describeRect(inner) + " could be binned";
     return false;
   }
   target_ = std::move(t);

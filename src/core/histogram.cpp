@@ -161,4 +161,44 @@ double SparseHistogram::scoreAndClear(const TargetHistogram& target)
   return rho;
 }
 
+std::string describeRect(const cv::Rect& r)
+{
+  return std::to_string(r.width) + "x" + std::to_string(r.height) + " at (" + std::to_string(r.x) + ", " +
+         std::to_string(r.y) + ")";
+}
+
+bool targetRegion(const cv::Size& image_size, const cv::Rect& roi, double margin, cv::Rect& inner, std::string& reason)
+{
+  if (image_size.area() <= 0)
+  {
+    reason = "the frame has no image in this view";
+    return false;
+  }
+  if (roi.width <= 0 || roi.height <= 0)
+  {
+    reason = "the region " + describeRect(roi) + " is empty";
+    return false;
+  }
+  const cv::Rect bounds(0, 0, image_size.width, image_size.height);
+  if ((roi & bounds).empty())
+  {
+    reason = "the region " + describeRect(roi) + " lies outside the " + std::to_string(image_size.width) + "x" +
+             std::to_string(image_size.height) + " image";
+    return false;
+  }
+  // Shrink relative to the object's box first, then clip: the margin is about the object's outline
+  // (background corners of a ball's bounding box), not about the image border.
+  const int mx = static_cast<int>(std::lround(roi.width * margin));
+  const int my = static_cast<int>(std::lround(roi.height * margin));
+  inner = cv::Rect(roi.x + mx, roi.y + my, roi.width - 2 * mx, roi.height - 2 * my) & bounds;
+  if (inner.width < 3 || inner.height < 3)
+  {
+    reason = "the region " + describeRect(roi) + " leaves only " + describeRect(inner) +
+             " inside the image after the target_margin of " + std::to_string(margin) +
+             " per side (at least 3x3 pixels needed)";
+    return false;
+  }
+  return true;
+}
+
 }  // namespace stereo_pf

@@ -3,6 +3,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include <opencv2/core.hpp>
@@ -36,6 +37,14 @@ private:
   std::vector<double> p_;
   std::vector<double> sqrt_p_;
 };
+
+/// The part of `roi` a target histogram is learned from: shrunk by `margin` (a fraction of its width and
+/// height) on each side, so the background corners of an object's box stay out, then clipped to an image of
+/// `image_size`. Returns false with `reason` (e.g. "the region 0x0 at (1, 2) is empty") when the image is
+/// empty, the region is empty or outside the image, or less than 3x3 pixels remain.
+bool targetRegion(const cv::Size& image_size, const cv::Rect& roi, double margin, cv::Rect& inner, std::string& reason);
+/// "WxH at (x, y)", for messages about regions.
+std::string describeRect(const cv::Rect& r);
 
 /// Bhattacharyya coefficient rho = sum_u sqrt(p_u q_u) of two normalised histograms (eq. 5.3), clamped to
 /// [0, 1]. Throws std::invalid_argument when the sizes differ.
