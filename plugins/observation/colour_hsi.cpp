@@ -76,11 +76,7 @@ void ColourHSI::applyTunables(const Tunables& t)
   // no evidence either way, rather than being punished below the background.
   invalid_log_likelihood_ = bhattacharyyaLogLikelihood(0.0, t.sigma);
   // A fixed grid in [-1, 1]^2, scaled by the window half-size per hypothesis: constant cost per hypothesis.
-  grid_.resize(t.samples);
-  for (int k = 0; k < t.samples; ++k)
-    grid_[k] = static_cast<float>(-1.0 + 2.0 * k / (t.samples - 1));
-  cols_.resize(t.samples);
-  rows_.resize(t.samples);
+  window_.reset(t.samples);
   candidate_.reset(binning_.bins(), t.samples * t.samples);
   ring_.reset(binning_.bins(), t.surround_samples);
   ring_cos_.resize(t.surround_samples);
@@ -165,9 +161,6 @@ void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen:
   const float surround = static_cast<float>(tunables_.surround_scale);
   const double surround_weight = tunables_.surround_weight;
   const int ring_n = tunables_.surround_samples;
-  const float* grid = grid_.data();
-  int* cols = cols_.data();
-  int* rows = rows_.data();
 
   for (int i = 0; i < n; ++i)
   {
@@ -179,26 +172,10 @@ void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen:
     // radius <= 0 (or NaN): a 2D hypothesis with the thesis's fixed window; otherwise scale with the ball.
     float half = r > 0.0f ? scale * std::max(r, min_radius) : fixed_half;
     half = std::min(half, max_half);
-    // Written so that NaN positions fail too.
-    if (!(u > -half - 1.0f && u < width + half + 1.0f && v > -half - 1.0f && v < height + half + 1.0f))
+    if (!window_.place(u, v, half, width, height, min_inside))
       continue;
 
-    // Sample coordinates per axis once: the grid is separable, so inside-ness is too (no per-sample test).
-    int nc = 0;
-    int nr = 0;
-    for (int k = 0; k < s; ++k)
-    {
-      const int x = cvRound(u + half * grid[k]);
-      if (x >= 0 && x < width)
-        cols[nc++] = x;
-      const int y = cvRound(v + half * grid[k]);
-      if (y >= 0 && y < height)
-        rows[nr++] = y;
-    }
-    if (nc * nr < min_inside)
-      continue;
-
-    candidate_.addGrid(data, step, rows, nr, cols, nc);
+    candidate_.addGrid(data, step, window_.rows(), window_.numRows(), window_.cols(), window_.numCols());
     const double rho = candidate_.scoreAndClear(target_);
     double penalty = 0.0;
     const float ring_radius = surround * (r > 0.0f ? std::max(r, min_radius) : learned_radius_);

@@ -251,11 +251,7 @@ void TextureEdge::applyTunables(const Tunables& t)
   tunables_ = t;
   invalid_log_likelihood_ = bhattacharyyaLogLikelihood(0.0, t.sigma);
   // A fixed grid in [-1, 1]^2, scaled by the window half-size per hypothesis: constant cost per hypothesis.
-  grid_.resize(t.samples);
-  for (int k = 0; k < t.samples; ++k)
-    grid_[k] = static_cast<float>(-1.0 + 2.0 * k / (t.samples - 1));
-  cols_.resize(t.samples);
-  rows_.resize(t.samples);
+  window_.reset(t.samples);
   candidate_.reset(binning_.bins(), t.samples * t.samples);
 }
 
@@ -321,9 +317,6 @@ void TextureEdge::evaluate(FeatureCache& cache, const ImageHypotheses& hyp,
   // Beyond this the window cannot have a quarter of its samples inside anyway; it also keeps cvRound in range.
   const float max_half = 4.0f * static_cast<float>(std::max(width, height));
   const double inv_two_sigma2 = 1.0 / (2.0 * tunables_.sigma * tunables_.sigma);
-  const float* grid = grid_.data();
-  int* cols = cols_.data();
-  int* rows = rows_.data();
 
   for (int i = 0; i < n; ++i)
   {
@@ -335,26 +328,10 @@ void TextureEdge::evaluate(FeatureCache& cache, const ImageHypotheses& hyp,
     // radius <= 0 (or NaN): a 2D hypothesis with the fixed window; otherwise scale with the object.
     float half = r > 0.0f ? scale * std::max(r, min_radius) : fixed_half;
     half = std::min(half, max_half);
-    // Written so that NaN positions fail too.
-    if (!(u > -half - 1.0f && u < width + half + 1.0f && v > -half - 1.0f && v < height + half + 1.0f))
+    if (!window_.place(u, v, half, width, height, min_inside))
       continue;
 
-    // The grid is separable, so inside-ness is too: clip the columns and rows once, no per-sample test.
-    int nc = 0;
-    int nr = 0;
-    for (int k = 0; k < s; ++k)
-    {
-      const int x = cvRound(u + half * grid[k]);
-      if (x >= 0 && x < width)
-        cols[nc++] = x;
-      const int y = cvRound(v + half * grid[k]);
-      if (y >= 0 && y < height)
-        rows[nr++] = y;
-    }
-    if (nc * nr < min_inside)
-      continue;
-
-    candidate_.addGrid(data, step, rows, nr, cols, nc);
+    candidate_.addGrid(data, step, window_.rows(), window_.numRows(), window_.cols(), window_.numCols());
     const double rho = candidate_.scoreAndClear(target_);
     log_likelihood[i] = -(1.0 - rho) * inv_two_sigma2;
     similarity[i] = rho;

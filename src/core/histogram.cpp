@@ -201,4 +201,31 @@ bool targetRegion(const cv::Size& image_size, const cv::Rect& roi, double margin
   return true;
 }
 
+void WindowGrid::reset(int samples)
+{
+  offsets_.resize(samples);
+  for (int k = 0; k < samples; ++k)
+    offsets_[k] = samples > 1 ? static_cast<float>(-1.0 + 2.0 * k / (samples - 1)) : 0.0f;
+  cols_.resize(samples);
+  rows_.resize(samples);
+}
+
+bool WindowGrid::place(float u, float v, float half, int width, int height, int min_inside)
+{
+  nc_ = nr_ = 0;
+  // Written so that NaN positions fail too.
+  if (!(u > -half - 1.0f && u < width + half + 1.0f && v > -half - 1.0f && v < height + half + 1.0f))
+    return false;
+  for (size_t k = 0; k < offsets_.size(); ++k)
+  {
+    const int x = cvRound(u + half * offsets_[k]);
+    if (x >= 0 && x < width)
+      cols_[nc_++] = x;
+    const int y = cvRound(v + half * offsets_[k]);
+    if (y >= 0 && y < height)
+      rows_[nr_++] = y;
+  }
+  return nc_ * nr_ >= min_inside;
+}
+
 }  // namespace stereo_pf

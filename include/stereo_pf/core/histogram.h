@@ -99,6 +99,29 @@ private:
   int n_ = 0;
 };
 
+/// A fixed `samples` x `samples` grid over a square window around a hypothesis, clipped to the image. The
+/// grid is separable, so only its in-image columns and rows are kept (no per-sample test), and the cost per
+/// hypothesis is the same whatever the window size. Used with SparseHistogram::addGrid.
+class WindowGrid
+{
+public:
+  /// Prepare a grid of `samples` points per axis spread evenly over [-1, 1].
+  void reset(int samples);
+  /// Place the grid on a window of half-size `half` centred at (u, v) in an image of width x height.
+  /// False when the window is off the image (NaN positions included) or fewer than `min_inside` samples land
+  /// inside it.
+  bool place(float u, float v, float half, int width, int height, int min_inside);
+  const int* cols() const { return cols_.data(); }  ///< in-image sample columns of the last place()
+  const int* rows() const { return rows_.data(); }  ///< in-image sample rows of the last place()
+  int numCols() const { return nc_; }
+  int numRows() const { return nr_; }
+
+private:
+  std::vector<float> offsets_;
+  std::vector<int> cols_, rows_;
+  int nc_ = 0, nr_ = 0;
+};
+
 /// Bhattacharyya log-likelihood of thesis eq. 5.5 without its constant: -(1 - rho) / (2 sigma^2).
 inline double bhattacharyyaLogLikelihood(double rho, double sigma)
 {

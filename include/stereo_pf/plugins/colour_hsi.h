@@ -113,8 +113,7 @@ private:
   TargetHistogram target_;
   double invalid_log_likelihood_ = 0.0;  // log-likelihood of rho = 0
   // scratch, sized in applyTunables: no allocation per hypothesis
-  std::vector<float> grid_;   // sample offsets in [-1, 1], `samples` entries
-  std::vector<int> cols_, rows_;
+  WindowGrid window_;         // the sample grid, placed per hypothesis
   SparseHistogram candidate_;
   SparseHistogram ring_;          // the surround ring's histogram
   std::vector<float> ring_cos_, ring_sin_;  // unit circle, `surround_samples` points

@@ -154,8 +154,7 @@ private:
   TargetHistogram target_;
   double invalid_log_likelihood_ = 0.0;  // log-likelihood of rho = 0
   // scratch, sized in applyTunables: no allocation per hypothesis
-  std::vector<float> grid_;
-  std::vector<int> cols_, rows_;
+  WindowGrid window_;         // the sample grid, placed per hypothesis
   SparseHistogram candidate_;
 };
 
