@@ -3,11 +3,18 @@
 // 10-seed acceptance runs reported in docs/).
 #include <gtest/gtest.h>
 
+#include <geometry_msgs/PointStamped.h>
+#include <geometry_msgs/PoseArray.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <map>
 #include <sstream>
 #include <string>
+#include <vector>
 #include <sys/stat.h>
 
 namespace
@@ -126,6 +133,38 @@ TEST(EndToEnd, OcclusionIsDeclaredLostAndReacquired)
     EXPECT_EQ(num(s, "declared_lost"), 1) << "seed " << seed;
     EXPECT_LE(num(s, "reacquire_frames"), 15) << "seed " << seed;
   }
+}
+
+// make_scene records where the other objects are (ground_truth/others), so a run can be checked for
+// locking onto the wrong object. multi_object's blue ball exists from t = 3 s (frame 90) on.
+TEST(EndToEnd, MultiObjectBagRecordsTheOtherObjects)
+{
+  rosbag::Bag b(bag("multi_object", 120), rosbag::bagmode::Read);
+  std::map<int, geometry_msgs::PoseArray> others;
+  std::map<int, geometry_msgs::PointStamped> target;
+  const std::vector<std::string> topics{ "ground_truth/others", "ground_truth/target" };
+  for (const rosbag::MessageInstance& m : rosbag::View(b, rosbag::TopicQuery(topics)))
+  {
+    if (auto a = m.instantiate<geometry_msgs::PoseArray>())
+      others[static_cast<int>(a->header.seq)] = *a;
+    else if (auto p = m.instantiate<geometry_msgs::PointStamped>())
+      target[static_cast<int>(p->header.seq)] = *p;
+  }
+  ASSERT_EQ(others.size(), 120u);
+  ASSERT_EQ(target.size(), 120u);
+  EXPECT_TRUE(others[0].poses.empty());
+  EXPECT_TRUE(others[89].poses.empty());
+  ASSERT_EQ(others[90].poses.size(), 1u);
+  ASSERT_EQ(others[119].poses.size(), 1u);
+  // The scene's linear trajectory from (-0.9, 0.32, 0.9) at t = 3 s to (1.0, 0.32, 1.3) at t = 8 s.
+  const auto& p90 = others[90].poses[0].position;
+  EXPECT_NEAR(p90.x, -0.9, 1e-6);
+  EXPECT_NEAR(p90.y, 0.32, 1e-6);
+  EXPECT_NEAR(p90.z, 0.9, 1e-6);
+  const auto& p119 = others[119].poses[0].position;
+  EXPECT_NEAR(p119.x, -0.9 + 1.9 * (29.0 / 30.0) / 5.0, 1e-6);
+  EXPECT_NEAR(p119.z, 0.9 + 0.4 * (29.0 / 30.0) / 5.0, 1e-6);
+  EXPECT_GT(std::abs(p119.x - target[119].point.x) + std::abs(p119.y - target[119].point.y), 0.1);
 }
 
 TEST(EndToEnd, ClearErrorsForBadInvocations)

@@ -10,6 +10,9 @@
 //   ground_truth/target          geometry_msgs/PointStamped, centre of the target (first object)
 //   ground_truth/target_roi      sensor_msgs/RegionOfInterest, its bounding box in the left image
 //   ground_truth/target_visible  std_msgs/Bool, present and at least half visible in both images
+//   ground_truth/others          geometry_msgs/PoseArray, centres of the other objects present (scenes
+//       with more than one object only; position only, identity orientation), for judging whether a
+//       tracker locked onto the wrong object
 // No roscore is needed.
 #include <chrono>
 #include <cstdio>
@@ -23,6 +26,7 @@
 
 #include <cv_bridge/cv_bridge.h>
 #include <geometry_msgs/PointStamped.h>
+#include <geometry_msgs/PoseArray.h>
 #include <opencv2/imgcodecs.hpp>
 #include <ros/time.h>
 #include <rosbag/bag.h>
@@ -260,6 +264,25 @@ int main(int argc, char** argv)
       shown.data = renderer->targetVisible(k);
       visible += shown.data ? 1 : 0;
       bag.write("ground_truth/target_visible", time, shown);
+
+      if (scene.objects.size() > 1)
+      {
+        geometry_msgs::PoseArray others;
+        others.header = header;
+        for (size_t i = 1; i < scene.objects.size(); ++i)
+        {
+          if (!renderer->objectPresent(i, k))
+            continue;
+          const Eigen::Vector3d q = renderer->objectPosition(i, k);
+          geometry_msgs::Pose pose;
+          pose.position.x = q.x();
+          pose.position.y = q.y();
+          pose.position.z = q.z();
+          pose.orientation.w = 1.0;
+          others.poses.push_back(pose);
+        }
+        bag.write("ground_truth/others", time, others);
+      }
 
       if (dump_frames.count(k))
       {
