@@ -113,8 +113,8 @@ public:
     hueAndMask(bgr);
     backProject();
     cv::Rect window = window_;
-    const cv::RotatedRect found =
-        cv::CamShift(back_projection_, window, cv::TermCriteria(cv::TermCriteria::EPS | cv::TermCriteria::COUNT, 10, 1));
+    const cv::TermCriteria stop(cv::TermCriteria::EPS | cv::TermCriteria::COUNT, 10, 1.0);
+    const cv::RotatedRect found = cv::CamShift(back_projection_, window, stop);
     window &= cv::Rect(0, 0, image.cols, image.rows);
     if (window.area() <= 0)
     {
