@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include <opencv2/imgproc.hpp>
+
 #include "stereo_pf/core/baseline_tracker.h"
 #include "stereo_pf/core/scene.h"
 
@@ -138,6 +140,30 @@ TEST(BaselineTracker, EachBaselineTracksIn3D)
     EXPECT_LT(run.rms, 0.04) << stereo_pf::toString(t);
     EXPECT_LT(run.max, 0.08) << stereo_pf::toString(t);
   }
+}
+
+// Trackers that follow different things (here: the right image moved 20 rows down, which no rectified pair
+// shows) give no 3D point, although each reports success.
+TEST(BaselineTracker, RowsThatDisagreeGiveNoEstimate)
+{
+  SceneRenderer renderer(movingBall(stereo_pf::SceneBackground::Type::Plain));
+  StereoFrame frame;
+  renderer.render(0, frame.left, frame.right);
+  frame.geometry = renderer.geometry();
+  StereoBaselineTracker tracker(BaselineType::CamShift);
+  std::string error;
+  ASSERT_TRUE(tracker.init(frame, renderer.targetRoi(0), error)) << error;
+  EXPECT_TRUE(tracker.update(frame).valid);
+
+  StereoFrame shifted = frame;
+  const cv::Mat down = (cv::Mat_<double>(2, 3) << 1, 0, 0, 0, 1, 20);
+  cv::warpAffine(frame.right, shifted.right, down, frame.right.size(), cv::INTER_NEAREST, cv::BORDER_REPLICATE);
+  BaselineEstimate e;
+  for (int k = 0; k < 5; ++k)  // let CamShift settle on the moved ball
+    e = tracker.update(shifted);
+  EXPECT_TRUE(e.left_found && e.right_found);
+  EXPECT_NEAR(e.right.v - e.left.v, 20.0, 2.0);
+  EXPECT_FALSE(e.valid);
 }
 
 TEST(BaselineTracker, ClearErrors)

@@ -267,9 +267,11 @@ BaselineEstimate StereoBaselineTracker::update(const StereoFrame& frame)
   BaselineEstimate e;
   e.left_found = left_->update(frame.left, e.left_box, e.left);
   e.right_found = right_->update(frame.right, e.right_box, e.right);
-  if (e.left_found && e.right_found)
+  // In a rectified pair both centres lie on one row; boxes rows apart are on different things (a tracker
+  // drifted onto a look-alike), and triangulating them would report a confident wrong point.
+  if (e.left_found && e.right_found && std::abs(e.left.v - e.right.v) <= config_.max_row_difference)
   {
-    // Rows agree up to tracker noise after rectification: use their mean.
+    // Rows agree up to tracker noise: use their mean.
     Pixel left = e.left;
     left.v = 0.5 * (e.left.v + e.right.v);
     e.valid = frame.geometry.triangulate(left, e.right.u, e.position) && e.position.allFinite();

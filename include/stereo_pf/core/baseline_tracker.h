@@ -33,6 +33,8 @@ struct BaselineConfig
 {
   int max_disparity = 160;        ///< right-box search range, pixels (160 px is 0.3 m for fx 525, baseline 0.09 m)
   double min_match_score = 0.5;   ///< lowest TM_CCOEFF_NORMED score accepted for the right box at init
+  double max_row_difference = 8.0;  ///< the box centres' rows may differ this much (pixels) in a rectified
+                                    ///< pair; more means a tracker is on something else (no 3D estimate)
   int hue_bins = 30;              ///< CamShift: hue histogram bins over OpenCV's hue range 0..180
   int min_saturation = 60;        ///< CamShift: pixels below this saturation (0..255) carry no reliable hue
   int min_value = 32;             ///< CamShift: pixels below this value (0..255) carry no reliable hue
@@ -52,7 +54,8 @@ struct RightMatch
 /// One stereo frame's result.
 struct BaselineEstimate
 {
-  bool valid = false;             ///< both trackers succeeded and the disparity is positive: `position` is usable
+  bool valid = false;             ///< both trackers succeeded, their rows agree and the disparity is positive:
+                                  ///< `position` is usable
   Eigen::Vector3d position = Eigen::Vector3d::Zero();  ///< triangulated box centres, left optical frame, m
   bool left_found = false;        ///< the left tracker reported success (`left`, `left_box` are its output)
   bool right_found = false;       ///< the right tracker reported success (`right`, `right_box` are its output)
@@ -61,8 +64,9 @@ struct BaselineEstimate
 };
 
 /// Two independent 2D trackers of the same type, one per rectified image, and their triangulation.
-/// A frame without a valid estimate (a tracker failed, or the boxes have no positive disparity) is "lost";
-/// the trackers keep running and may pick the target up again. Not thread-safe; not copyable.
+/// A frame without a valid estimate (a tracker failed, the centres' rows differ by more than
+/// max_row_difference, or the disparity is not positive) is "lost"; the trackers keep running and may pick
+/// the target up again. Not thread-safe; not copyable.
 class StereoBaselineTracker
 {
 public:
