@@ -1,15 +1,20 @@
-// track_bag: run the tracker over a bag of stereo frames offline (no roscore), write a CSV and a summary.
+// track_bag: run the tracker (or an OpenCV baseline) over a bag of stereo frames offline (no roscore),
+// write a CSV and a summary.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <memory>
+#include <optional>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <ros/time.h>
 
+#include "stereo_pf/core/baseline_tracker.h"
 #include "stereo_pf/core/evaluation.h"
 #include "stereo_pf/ros/bag_source.h"
 #include "stereo_pf/ros/plugin_loader.h"
@@ -29,11 +34,17 @@ const char* kUsage =
     "  --output CSV             one row per frame\n"
     "  --left-image T --right-image T --left-info T --right-info T --truth T   topic overrides\n"
     "  --rectified              images are already rectified (e.g. stereo_image_proc's image_rect_color)\n"
-    "  --quiet                  only the summary line\n";
+    "  --quiet                  only the summary line\n"
+    "  --baseline NAME          instead of a particle filter, OpenCV's csrt, kcf or camshift in each image, both\n"
+    "                           started from the target box (right box by template matching), centres triangulated;\n"
+    "                           the filter's options (--config --set --state --particles --seed --target-model\n"
+    "                           --save-target) are refused with it. CSV: sxx..szz and ess are empty, and x..szz\n"
+    "                           too in frames without a 3D estimate (state lost)\n";
 
 struct Options
 {
   std::string bag, config, state, target_model, save_target, output;
+  std::string baseline;       ///< OpenCV baseline instead of the particle filter (empty: the filter)
   std::vector<std::string> overrides;
   int particles = -1;
   long seed = -1;
@@ -126,6 +137,8 @@ Options parse(int argc, char** argv)
       o.rectified = true;
     else if (a == "--quiet")
       o.quiet = true;
+    else if (a == "--baseline")
+      o.baseline = value();
     else if (!a.empty() && a[0] == '-')
       usageError("unknown option '" + a + "'");
     else if (o.bag.empty())
@@ -139,6 +152,28 @@ Options parse(int argc, char** argv)
     usageError("--target-frame must be >= 0");
   if (o.has_roi && !o.target_model.empty())
     usageError("give either --target-roi or --target-model, not both");
+  if (!o.baseline.empty())
+  {
+    try
+    {
+      stereo_pf::parseBaselineType(o.baseline);
+    }
+    catch (const std::invalid_argument& e)
+    {
+      usageError(std::string("--baseline: ") + e.what());
+    }
+    // Refused rather than ignored: a run that silently drops --seed or --config would be misread.
+    const std::pair<bool, const char*> filter_only[] = {
+      { !o.config.empty(), "--config" },        { !o.overrides.empty(), "--set" },
+      { !o.state.empty(), "--state" },          { o.particles >= 0, "--particles" },
+      { o.seed >= 0, "--seed" },                { !o.target_model.empty(), "--target-model" },
+      { !o.save_target.empty(), "--save-target" }
+    };
+    for (const auto& f : filter_only)
+      if (f.first)
+        usageError(std::string(f.second) + " configures the particle filter; --baseline " + o.baseline +
+                   " starts from --target-roi or the bag's ground_truth/target_roi and takes no filter options");
+  }
   return o;
 }
 
@@ -157,6 +192,192 @@ stereo_pf::Parameters buildParameters(const Options& o)
     stereo_pf::applyOverride(a, p);
   return p;
 }
+
+/// One frame's output of whichever method runs, as the CSV row and the summary take it. Empty optionals
+/// are empty CSV fields: a baseline has no covariance or ESS, and no 3D point while lost.
+struct StepResult
+{
+  std::optional<Eigen::Vector3d> position;  ///< the 3D estimate, when valid
+  std::optional<Eigen::Vector3d> variance;  ///< its variances along x, y, z, m^2
+  std::optional<stereo_pf::Pixel> left, right;  ///< the estimate in each image
+  std::optional<double> ess;                ///< effective sample size
+  stereo_pf::TrackState state = stereo_pf::TrackState::Searching;
+};
+
+/// What track_bag runs over the bag: the particle filter or an OpenCV baseline, behind one loop.
+class Method
+{
+public:
+  virtual ~Method() = default;
+  /// For the progress header, e.g. "stereo_pf/Position3D, 1000 particles per set, seed 1".
+  virtual std::string describe() const = 0;
+  /// True once the target is known (learned, or loaded before the first frame).
+  virtual bool hasTarget() const = 0;
+  /// Learn the target from `roi` of the left image; false with `error` when that is impossible.
+  virtual bool learn(const stereo_pf::StereoFrame& frame, const cv::Rect& roi, std::string& error) = 0;
+  /// Track one frame (timed by the caller).
+  virtual StepResult step(const stereo_pf::StereoFrame& frame) = 0;
+};
+
+/// The particle filter configured from the options (plugins through pluginlib).
+class FilterMethod : public Method
+{
+public:
+  explicit FilterMethod(const Options& o) : tracker_(buildParameters(o)), save_target_(o.save_target)
+  {
+    std::string error;
+    if (!o.target_model.empty() && !engine().loadTarget(o.target_model, error))
+      throw std::runtime_error(error);
+  }
+
+  std::string describe() const override
+  {
+    const auto& c = tracker_.engine().config();
+    return tracker_.pluginTypes().front() + ", " + std::to_string(c.particles) + " particles per set, seed " +
+           std::to_string(c.seed);
+  }
+  bool hasTarget() const override { return tracker_.engine().hasTarget(); }
+  bool learn(const stereo_pf::StereoFrame& frame, const cv::Rect& roi, std::string& error) override
+  {
+    if (!engine().learnTarget(frame, roi, error))
+      return false;
+    if (!save_target_.empty() && !engine().saveTarget(save_target_, error))
+      throw std::runtime_error(error);
+    return true;
+  }
+  StepResult step(const stereo_pf::StereoFrame& frame) override
+  {
+    const stereo_pf::FrameResult r = engine().step(frame);
+    StepResult s;
+    if (r.estimate.valid)
+    {
+      s.position = r.estimate.position;
+      s.variance = r.estimate.covariance.diagonal();
+    }
+    s.left = r.estimate.left;
+    s.right = r.estimate.right;
+    s.ess = r.ess;
+    s.state = r.state;
+    return s;
+  }
+
+private:
+  stereo_pf::FilterEngine& engine() { return tracker_.engine(); }
+
+  stereo_pf::Tracker tracker_;
+  std::string save_target_;
+};
+
+/// An OpenCV tracker in each image, triangulated (stereo_pf::StereoBaselineTracker).
+class BaselineMethod : public Method
+{
+public:
+  explicit BaselineMethod(const std::string& name) : tracker_(name) {}
+
+  std::string describe() const override
+  {
+    return "the " + stereo_pf::toString(tracker_.type()) + " baseline (OpenCV, one tracker per image)";
+  }
+  bool hasTarget() const override { return tracker_.initialised(); }
+  bool learn(const stereo_pf::StereoFrame& frame, const cv::Rect& roi, std::string& error) override
+  {
+    return tracker_.init(frame, roi, error);
+  }
+  StepResult step(const stereo_pf::StereoFrame& frame) override
+  {
+    const stereo_pf::BaselineEstimate e = tracker_.update(frame);
+    StepResult s;
+    if (e.valid)
+      s.position = e.position;
+    if (e.left_found)
+      s.left = e.left;
+    if (e.right_found)
+      s.right = e.right;
+    s.state = e.valid ? stereo_pf::TrackState::Tracking : stereo_pf::TrackState::Lost;
+    return s;
+  }
+
+private:
+  stereo_pf::StereoBaselineTracker tracker_;
+};
+
+/// The CSV (when asked for) and the records the summary is computed from: one row per tracked frame,
+/// whichever method produced it.
+class Recorder
+{
+public:
+  /// `path` empty: no CSV. `with_truth`: the bag has ground truth (adds gt_x,gt_y,gt_z,err).
+  Recorder(const std::string& path, bool with_truth) : with_truth_(with_truth)
+  {
+    if (path.empty())
+      return;
+    csv_.open(path);
+    if (!csv_)
+      throw std::runtime_error("cannot write '" + path + "'");
+    csv_ << "frame,stamp,x,y,z,sxx,syy,szz,u_left,v_left,u_right,v_right,ess,state,ms";
+    if (with_truth_)
+      csv_ << ",gt_x,gt_y,gt_z,err";
+    csv_ << "\n";
+    csv_.precision(9);
+  }
+
+  /// Record frame `bf` tracked in `ms` milliseconds; returns the record (for progress output).
+  const stereo_pf::FrameRecord& add(const stereo_pf::BagFrame& bf, const StepResult& r, double ms)
+  {
+    stereo_pf::FrameRecord rec;
+    rec.has_truth = bf.has_truth;
+    rec.truth = bf.truth;
+    rec.target_visible = bf.visible;
+    rec.estimate_valid = r.position.has_value();
+    if (r.position)
+      rec.estimate = *r.position;
+    rec.tracking = r.state == stereo_pf::TrackState::Tracking;
+    rec.ms = ms;
+    records_.push_back(rec);
+    if (csv_.is_open())
+      writeRow(bf, r, rec);
+    return records_.back();
+  }
+
+  /// Every frame recorded so far.
+  const std::vector<stereo_pf::FrameRecord>& records() const { return records_; }
+
+private:
+  void writeRow(const stereo_pf::BagFrame& bf, const StepResult& r, const stereo_pf::FrameRecord& rec)
+  {
+    csv_ << bf.index << "," << bf.frame.stamp;
+    for (int i = 0; i < 3; ++i)
+      field(r.position ? std::optional<double>((*r.position)[i]) : std::nullopt);
+    for (int i = 0; i < 3; ++i)
+      field(r.variance ? std::optional<double>((*r.variance)[i]) : std::nullopt);
+    for (const auto& px : { r.left, r.right })
+    {
+      field(px ? std::optional<double>(px->u) : std::nullopt);
+      field(px ? std::optional<double>(px->v) : std::nullopt);
+    }
+    field(r.ess);
+    csv_ << "," << stereo_pf::toString(r.state) << "," << rec.ms;
+    if (with_truth_)
+    {
+      if (bf.has_truth)
+        csv_ << "," << bf.truth.x() << "," << bf.truth.y() << "," << bf.truth.z() << "," << rec.error();
+      else
+        csv_ << ",,,,";
+    }
+    csv_ << "\n";
+  }
+  // ",value", or "," for a value the method does not have.
+  void field(const std::optional<double>& v)
+  {
+    csv_ << ",";
+    if (v)
+      csv_ << *v;
+  }
+
+  bool with_truth_;
+  std::ofstream csv_;
+  std::vector<stereo_pf::FrameRecord> records_;
+};
 }  // namespace
 
 int main(int argc, char** argv)
@@ -165,32 +386,20 @@ int main(int argc, char** argv)
   ros::Time::init();
   try
   {
-    stereo_pf::Tracker tracker(buildParameters(opt));
-    stereo_pf::FilterEngine& engine = tracker.engine();
-    std::string error;
-    if (!opt.target_model.empty() && !engine.loadTarget(opt.target_model, error))
-      throw std::runtime_error(error);
+    std::unique_ptr<Method> method;
+    if (opt.baseline.empty())
+      method = std::make_unique<FilterMethod>(opt);
+    else
+      method = std::make_unique<BaselineMethod>(opt.baseline);
 
     stereo_pf::BagSource source(opt.bag, opt.topics, opt.rectified);
-    std::ofstream csv;
-    if (!opt.output.empty())
-    {
-      csv.open(opt.output);
-      if (!csv)
-        throw std::runtime_error("cannot write '" + opt.output + "'");
-      csv << "frame,stamp,x,y,z,sxx,syy,szz,u_left,v_left,u_right,v_right,ess,state,ms";
-      if (source.hasTruth())
-        csv << ",gt_x,gt_y,gt_z,err";
-      csv << "\n";
-      csv.precision(9);
-    }
+    Recorder recorder(opt.output, source.hasTruth());
     if (!opt.quiet)
-      std::cout << "track_bag: " << opt.bag << " with " << tracker.pluginTypes().front() << ", "
-                << engine.config().particles << " particles per set, seed " << engine.config().seed << "\n";
+      std::cout << "track_bag: " << opt.bag << " with " << method->describe() << "\n";
 
-    std::vector<stereo_pf::FrameRecord> records;
     stereo_pf::BagFrame bf;
-    bool learned = engine.hasTarget();
+    bool learned = method->hasTarget();
+    std::string error;
     while (source.next(bf))
     {
       if (!learned)
@@ -201,54 +410,32 @@ int main(int argc, char** argv)
         if (!opt.has_roi)
         {
           if (!bf.has_roi)
-            throw std::runtime_error("no target: give --target-roi x,y,w,h (with --target-frame K) or "
-                                     "--target-model FILE; the bag has no ground_truth/target_roi for frame " +
-                                     std::to_string(bf.index));
+            throw std::runtime_error(std::string("no target: give --target-roi x,y,w,h (with --target-frame K)") +
+                                     (opt.baseline.empty() ? " or --target-model FILE" : "") +
+                                     "; the bag has no ground_truth/target_roi for frame " + std::to_string(bf.index));
           roi = bf.roi;
         }
-        if (!engine.learnTarget(bf.frame, roi, error))
+        if (!method->learn(bf.frame, roi, error))
           throw std::runtime_error("cannot learn the target from frame " + std::to_string(bf.index) + ": " + error);
         learned = true;
-        if (!opt.save_target.empty() && !engine.saveTarget(opt.save_target, error))
-          throw std::runtime_error(error);
       }
       const auto t0 = std::chrono::steady_clock::now();
-      const stereo_pf::FrameResult r = engine.step(bf.frame);
+      const StepResult r = method->step(bf.frame);
       const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      const stereo_pf::FrameRecord& rec = recorder.add(bf, r, ms);
 
-      stereo_pf::FrameRecord rec;
-      rec.has_truth = bf.has_truth;
-      rec.truth = bf.truth;
-      rec.target_visible = bf.visible;
-      rec.estimate_valid = r.estimate.valid;
-      rec.estimate = r.estimate.position;
-      rec.tracking = r.state == stereo_pf::TrackState::Tracking;
-      rec.ms = ms;
-      records.push_back(rec);
-
-      if (csv.is_open())
-      {
-        const auto& e = r.estimate;
-        csv << bf.index << "," << bf.frame.stamp << "," << e.position.x() << "," << e.position.y() << ","
-            << e.position.z() << "," << e.covariance(0, 0) << "," << e.covariance(1, 1) << "," << e.covariance(2, 2)
-            << "," << e.left.u << "," << e.left.v << "," << e.right.u << "," << e.right.v << "," << r.ess << ","
-            << stereo_pf::toString(r.state) << "," << ms;
-        if (source.hasTruth())
-        {
-          if (bf.has_truth)
-            csv << "," << bf.truth.x() << "," << bf.truth.y() << "," << bf.truth.z() << "," << rec.error();
-          else
-            csv << ",,,,";
-        }
-        csv << "\n";
-      }
       if (!opt.quiet && bf.index % 50 == 0)
       {
-        std::printf("frame %4d  %-9s  xyz=(%.3f, %.3f, %.3f)", bf.index, stereo_pf::toString(r.state).c_str(),
-                    r.estimate.position.x(), r.estimate.position.y(), r.estimate.position.z());
-        if (bf.has_truth)
+        std::printf("frame %4d  %-9s", bf.index, stereo_pf::toString(r.state).c_str());
+        if (r.position)
+          std::printf("  xyz=(%.3f, %.3f, %.3f)", r.position->x(), r.position->y(), r.position->z());
+        else
+          std::printf("  no 3D estimate");
+        if (bf.has_truth && rec.estimate_valid)
           std::printf("  err=%.1f cm", rec.error() * 100.0);
-        std::printf("  ess=%.0f  %.2f ms\n", r.ess, ms);
+        if (r.ess)
+          std::printf("  ess=%.0f", *r.ess);
+        std::printf("  %.2f ms\n", ms);
       }
     }
     if (!learned)
@@ -256,9 +443,9 @@ int main(int argc, char** argv)
                                std::to_string(opt.target_frame));
     for (const auto& kv : source.dropReasons())
       std::cerr << "track_bag: warning: dropped " << kv.second << " frame(s): " << kv.first << "\n";
-    if (records.empty())
+    if (recorder.records().empty())
       throw std::runtime_error("no frame could be tracked");
-    std::cout << stereo_pf::summarise(records).line() << std::endl;
+    std::cout << stereo_pf::summarise(recorder.records()).line() << std::endl;
     return 0;
   }
   catch (const std::exception& e)
