@@ -65,3 +65,42 @@ int main(int argc, char** argv)
   testing::InitGoogleTest(&argc, argv);
   return RUN_ALL_TESTS();
 }
+
+// Row-wise products: only the rows asked for are computed, rows already there are kept, and the result in
+// those rows equals the whole-image computation.
+TEST(FeatureCache, RowProductsComputeOnlyTheMissingRows)
+{
+  FeatureCache cache;
+  cache.reset(frame(10));
+  std::vector<std::pair<int, int>> calls;
+  auto compute = [&calls](const cv::Mat& image, cv::Mat& out, int y0, int y1) {
+    calls.emplace_back(y0, y1);
+    out.create(image.size(), CV_8UC1);
+    if (y0 < y1)
+      cv::cvtColor(image.rowRange(y0, y1), out.rowRange(y0, y1), cv::COLOR_BGR2GRAY);
+  };
+  cache.getRows(View::Left, "g", 10, 20, compute);
+  cache.getRows(View::Left, "g", 12, 18, compute);  // inside: nothing to do
+  cache.getRows(View::Left, "g", 5, 25, compute);   // both ends
+  cache.getRows(View::Left, "g", -7, 1000, compute);  // clipped to the image's 48 rows
+  const std::vector<std::pair<int, int>> expected{ { 10, 20 }, { 5, 10 }, { 20, 25 }, { 0, 5 }, { 25, 48 } };
+  EXPECT_EQ(calls, expected);
+  cv::Mat full;
+  cv::cvtColor(cache.image(View::Left), full, cv::COLOR_BGR2GRAY);
+  EXPECT_EQ(cv::norm(cache.getRows(View::Left, "g", 0, 48, compute), full, cv::NORM_INF), 0.0);
+  EXPECT_EQ(calls.size(), expected.size());
+
+  // A new frame starts again from the rows asked for; an empty request only allocates.
+  calls.clear();
+  cache.reset(frame(20));
+  const cv::Mat& empty = cache.getRows(View::Right, "g", 30, 30, compute);
+  EXPECT_EQ(empty.size(), cv::Size(64, 48));
+  cache.getRows(View::Right, "g", 40, 44, compute);
+  const std::vector<std::pair<int, int>> expected2{ { 30, 30 }, { 40, 44 } };
+  EXPECT_EQ(calls, expected2);
+
+  // The grey image by rows equals the whole grey image in those rows.
+  const cv::Mat band = cache.gray(View::Left, 8, 22).rowRange(8, 22).clone();
+  cv::cvtColor(cache.image(View::Left), full, cv::COLOR_BGR2GRAY);
+  EXPECT_EQ(cv::norm(band, full.rowRange(8, 22), cv::NORM_INF), 0.0);
+}

@@ -1116,3 +1116,89 @@ int main(int argc, char** argv)
   testing::InitGoogleTest(&argc, argv);
   return RUN_ALL_TESTS();
 }
+
+// The cues ask the cache only for the rows their windows, rings and lines reach. Scores must be exactly those
+// of whole-image products: the buffers are first filled with another frame, so a row missing from a cue's
+// band would be read stale and change its score.
+TEST(Cues, RowLimitedProductsScoreLikeWholeImages)
+{
+  const SceneDescription scene = loadScene(std::string(SCENES_DIR) + "/checkered_cluttered.yaml");
+  SceneRenderer renderer(scene);
+  cv::Mat l0, r0, l1, r1;
+  renderer.render(0, l0, r0);
+  renderer.render(40, l1, r1);
+  const StereoFrame stale = makeFrame(l0, r0);
+  const StereoFrame current = makeFrame(l1, r1);
+  FeatureCache learn;
+  learn.reset(stale);
+  ColourHSI colour;
+  colour.initialize("colour", Parameters());
+  TextureEdge texture;
+  texture.initialize("texture", Parameters());
+  ShapeCircle shape;
+  shape.initialize("shape", Parameters());
+  std::string error;
+  std::vector<ObservationModel*> models{ &colour, &texture, &shape };
+  for (ObservationModel* m : models)
+    ASSERT_TRUE(m->learnTarget(learn, View::Left, renderer.targetRoi(0), error)) << error;
+
+  // Two batches per view: 3D hypotheses around the ball, and 2D ones (radius 0) spread over the image,
+  // some of them near or past its edges.
+  std::mt19937 rng(7);
+  const StereoGeometry g = renderer.geometry();
+  auto batch = [&](View view, bool around_ball) {
+    ImageHypotheses h;
+    h.view = view;
+    h.resize(300);
+    const Pixel c = g.project(renderer.targetPosition(40), view);
+    std::normal_distribution<float> near(0.0f, 20.0f);
+    std::uniform_real_distribution<float> u(-30.0f, 670.0f), v(-30.0f, 510.0f), r(8.0f, 40.0f);
+    for (int i = 0; i < h.size(); ++i)
+    {
+      h.u[i] = around_ball ? static_cast<float>(c.u) + near(rng) : u(rng);
+      h.v[i] = around_ball ? static_cast<float>(c.v) + near(rng) : v(rng);
+      h.radius[i] = around_ball ? r(rng) : 0.0f;
+      h.valid[i] = i % 17 != 0;
+    }
+    return h;
+  };
+  std::vector<ImageHypotheses> batches;
+  for (const View view : { View::Left, View::Right })
+  {
+    batches.push_back(batch(view, true));
+    batches.push_back(batch(view, false));
+  }
+
+  auto scoreAll = [&](bool whole_first) {
+    FeatureCache cache;
+    cache.reset(stale);  // fill every buffer with another frame
+    for (const View view : { View::Left, View::Right })
+    {
+      colour.binImage(cache, view);
+      texture.binImage(cache, view);
+      cache.gray(view);
+    }
+    cache.reset(current);
+    if (whole_first)
+      for (const View view : { View::Left, View::Right })
+      {
+        colour.binImage(cache, view);
+        texture.binImage(cache, view);
+        cache.gray(view);
+      }
+    std::vector<Eigen::VectorXd> out;
+    for (const ImageHypotheses& h : batches)
+      for (ObservationModel* m : models)
+      {
+        Eigen::VectorXd ll(h.size()), sim(h.size());
+        m->evaluate(cache, h, ll, sim);
+        out.push_back(ll);
+        out.push_back(sim);
+      }
+    return out;
+  };
+  const std::vector<Eigen::VectorXd> rows = scoreAll(false), whole = scoreAll(true);
+  ASSERT_EQ(rows.size(), whole.size());
+  for (size_t k = 0; k < rows.size(); ++k)
+    EXPECT_EQ(rows[k], whole[k]) << "batch " << k / (2 * models.size()) << ", model " << (k / 2) % models.size();
+}

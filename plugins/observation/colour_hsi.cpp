@@ -98,9 +98,20 @@ void ColourHSI::reconfigure()
 
 const cv::Mat& ColourHSI::binImage(FeatureCache& cache, View view)
 {
+  return binImage(cache, view, 0, cache.image(view).rows);
+}
+
+const cv::Mat& ColourHSI::binImage(FeatureCache& cache, View view, int y0, int y1)
+{
   if (!binner_)
     throw std::logic_error("ColourHSI: used before initialize()");
-  return cache.get(view, cache_key_, [this](const cv::Mat& image, cv::Mat& out) { binner_->binImage(image, out); });
+  return cache.getRows(view, cache_key_, y0, y1, [this](const cv::Mat& image, cv::Mat& out, int a, int b) {
+    out.create(image.size(), CV_8UC1);
+    if (a >= b)
+      return;
+    cv::Mat rows = out.rowRange(a, b);  // the right size and type: binImage() fills it in place
+    binner_->binImage(image.rowRange(a, b), rows);
+  });
 }
 
 double ColourHSI::targetProbability(int bin) const
@@ -144,12 +155,9 @@ void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen:
   if (!target_.valid() || n == 0)
     return;
 
-  const cv::Mat& bins = binImage(cache, hyp.view);  // once per view per frame, shared by every hypothesis
-  const int width = bins.cols;
-  const int height = bins.rows;
-  const size_t step = bins.step[0];
-  const uint8_t* data = bins.data;
-
+  const cv::Mat& image = cache.image(hyp.view);
+  const int width = image.cols;
+  const int height = image.rows;
   const int s = tunables_.samples;
   const int min_inside = (s * s + kMinInsideDenominator - 1) / kMinInsideDenominator;
   const float fixed_half = 0.5f * static_cast<float>(tunables_.window - 1);
@@ -161,6 +169,33 @@ void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen:
   const float surround = static_cast<float>(tunables_.surround_scale);
   const double surround_weight = tunables_.surround_weight;
   const int ring_n = tunables_.surround_samples;
+  // Window half-size and ring radius of hypothesis i (ring 0: no ring).
+  auto extent = [&](int i, float& half, float& ring) {
+    const float r = hyp.radius[i];
+    // radius <= 0 (or NaN): a 2D hypothesis with the thesis's fixed window; otherwise scale with the ball.
+    half = std::min(r > 0.0f ? scale * std::max(r, min_radius) : fixed_half, max_half);
+    ring = surround * (r > 0.0f ? std::max(r, min_radius) : learned_radius_);
+    if (!(surround > 0.0f && ring > 0.0f && ring < max_half))
+      ring = 0.0f;
+  };
+
+  // Only the rows the windows and rings reach need binning (a band of the image while tracking).
+  float top = static_cast<float>(height), bottom = -1.0f;
+  for (int i = 0; i < n; ++i)
+  {
+    if (!hyp.valid[i] || !std::isfinite(hyp.v[i]))
+      continue;
+    float half, ring;
+    extent(i, half, ring);
+    const float reach = std::max(half, ring) + 1.0f;  // + 1: rounding to pixel centres
+    top = std::min(top, hyp.v[i] - reach);
+    bottom = std::max(bottom, hyp.v[i] + reach);
+  }
+  const std::pair<int, int> rows = rowSpan(top, bottom, height);
+  // Once per view per frame (in the rows not binned yet), shared by every hypothesis.
+  const cv::Mat& bins = binImage(cache, hyp.view, rows.first, rows.second);
+  const size_t step = bins.step[0];
+  const uint8_t* data = bins.data;
 
   for (int i = 0; i < n; ++i)
   {
@@ -168,18 +203,15 @@ void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen:
       continue;
     const float u = hyp.u[i];
     const float v = hyp.v[i];
-    const float r = hyp.radius[i];
-    // radius <= 0 (or NaN): a 2D hypothesis with the thesis's fixed window; otherwise scale with the ball.
-    float half = r > 0.0f ? scale * std::max(r, min_radius) : fixed_half;
-    half = std::min(half, max_half);
+    float half, ring_radius;
+    extent(i, half, ring_radius);
     if (!window_.place(u, v, half, width, height, min_inside))
       continue;
 
     candidate_.addGrid(data, step, window_.rows(), window_.numRows(), window_.cols(), window_.numCols());
     const double rho = candidate_.scoreAndClear(target_);
     double penalty = 0.0;
-    const float ring_radius = surround * (r > 0.0f ? std::max(r, min_radius) : learned_radius_);
-    if (surround > 0.0f && ring_radius > 0.0f && ring_radius < max_half)
+    if (ring_radius > 0.0f)
     {
       for (int k = 0; k < ring_n; ++k)
       {

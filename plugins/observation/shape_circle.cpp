@@ -236,16 +236,8 @@ void ShapeCircle::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eige
   if (n == 0 || samples_per_line_ == 0)
     return;
 
-  // The grey image is the only per-image product needed (shared with every other model using it).
-  const cv::Mat& gray = cache.gray(hyp.view);
-  if (gray.type() != CV_8UC1)
-    throw std::logic_error(name() + ": the cache's grey image is not CV_8UC1");
-  const size_t stride = gray.step[0];
-  if (stride != offsets_stride_)
-    buildOffsets(stride);
-  const uint8_t* data = gray.data;
-  const int width = gray.cols;
-  const int height = gray.rows;
+  const int width = cache.image(hyp.view).cols;
+  const int height = cache.image(hyp.view).rows;
 
   const int k_lines = tunables_.lines;
   const int m = samples_per_line_;
@@ -278,23 +270,56 @@ void ShapeCircle::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eige
   // Bits 1 .. m - 4: the differences that may be a peak (both neighbours exist).
   const uint64_t peak_range = ((uint64_t{ 1 } << (m - 3)) - 1) & ~uint64_t{ 1 };
 
+  // The contours first: they say which rows of the grey image the lines can reach.
+  contours_.resize(static_cast<size_t>(n));
+  float top = static_cast<float>(height), bottom = -1.0f;
   for (int i = 0; i < n; ++i)
   {
+    Contour& c = contours_[static_cast<size_t>(i)];
+    c.usable = false;
     if (!hyp.valid[i])
       continue;
     const float u = hyp.u[i];
     const float v = hyp.v[i];
     const bool is_3d = hyp.radius[i] > 0.0f;
-    const float r = is_3d ? std::max(hyp.radius[i], min_radius) : r2d;
+    c.r = is_3d ? std::max(hyp.radius[i], min_radius) : r2d;
     // Also rejects NaN radii and positions.
-    if (!(r > 0.0f && r <= max_radius && std::abs(u) < 4.0f * width + max_radius &&
+    if (!(c.r > 0.0f && c.r <= max_radius && std::abs(u) < 4.0f * width + max_radius &&
           std::abs(v) < 4.0f * height + max_radius))
       continue;
     // The contour: a circle of radius r around (u, v), or for a 3D hypothesis the ellipse its sphere
     // projects to. Along line k it lies at distance rho_k = a b / sqrt(b^2 cos^2 psi + a^2 sin^2 psi) from
     // the centre (psi: the line's angle to the radial direction).
-    float cu = u, cv = v, ex = 1.0f, ey = 0.0f, a = r, b = r;
-    const bool ellipse = is_3d && perspective && sphereSilhouette(u, v, r, focal, cx, cy, cu, cv, ex, ey, a, b);
+    c.cu = u;
+    c.cv = v;
+    c.ex = 1.0f;
+    c.ey = 0.0f;
+    c.a = c.b = c.r;
+    c.ellipse = is_3d && perspective && sphereSilhouette(u, v, c.r, focal, cx, cy, c.cu, c.cv, c.ex, c.ey, c.a, c.b);
+    c.usable = true;
+    const float extent = std::max(c.a, c.b) + static_cast<float>(reach);
+    top = std::min(top, c.cv - extent);
+    bottom = std::max(bottom, c.cv + extent);
+  }
+  // The grey image is the only per-image product needed (shared with every other model using it), and
+  // only in the rows the lines reach.
+  const std::pair<int, int> rows = rowSpan(top, bottom, height);
+  const cv::Mat& gray = cache.gray(hyp.view, rows.first, rows.second);
+  if (gray.type() != CV_8UC1)
+    throw std::logic_error(name() + ": the cache's grey image is not CV_8UC1");
+  const size_t stride = gray.step[0];
+  if (stride != offsets_stride_)
+    buildOffsets(stride);
+  const uint8_t* data = gray.data;
+
+  for (int i = 0; i < n; ++i)
+  {
+    const Contour& contour = contours_[static_cast<size_t>(i)];
+    if (!contour.usable)
+      continue;
+    const float cu = contour.cu, cv = contour.cv, ex = contour.ex, ey = contour.ey, a = contour.a, b = contour.b;
+    const float r = contour.r;
+    const bool ellipse = contour.ellipse;
     // Fast path: the whole pattern is inside the image, no per-line bounds test.
     const float extent = std::max(a, b) + static_cast<float>(reach);
     const bool all_inside = cu - extent >= 0.0f && cu + extent <= width - 1 && cv - extent >= 0.0f &&

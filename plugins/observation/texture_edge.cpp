@@ -103,12 +103,20 @@ int EdgeBinner::bin(int sx, int sy) const
 
 void EdgeBinner::binImage(const cv::Mat& gray, cv::Mat& bins) const
 {
+  binImage(gray, bins, 0, gray.rows);
+}
+
+void EdgeBinner::binImage(const cv::Mat& gray, cv::Mat& bins, int y0, int y1) const
+{
   if (gray.type() != CV_8UC1)
     throw std::invalid_argument("EdgeBinner::binImage: expected a CV_8UC1 grey image, got type " +
                                 std::to_string(gray.type()));
+  if (y0 < 0 || y1 > gray.rows || y0 > y1)
+    throw std::invalid_argument("EdgeBinner::binImage: rows [" + std::to_string(y0) + ", " + std::to_string(y1) +
+                                ") are not within the image's " + std::to_string(gray.rows));
   bins.create(gray.size(), CV_8UC1);
   const int w = gray.cols, h = gray.rows;
-  if (w == 0 || h == 0)
+  if (w == 0 || h == 0 || y0 == y1)
     return;
   // Separable Sobel: per row, the vertical smoothing a + 2b + c (for Sx) and difference c - a (for Sy)
   // of the rows above and below, with one reflected column each side (BORDER_REFLECT_101), then
@@ -137,7 +145,7 @@ void EdgeBinner::binImage(const cv::Mat& gray, cv::Mat& bins) const
     return (v_three + hm + hm + vm) & (m2 >= v_tau2);
   };
 
-  for (int y = 0; y < h; ++y)
+  for (int y = y0; y < y1; ++y)
   {
     const uint8_t* a = gray.ptr<uint8_t>(y > 0 ? y - 1 : std::min(1, h - 1));
     const uint8_t* b = gray.ptr<uint8_t>(y);
@@ -264,11 +272,20 @@ void TextureEdge::reconfigure()
 
 const cv::Mat& TextureEdge::binImage(FeatureCache& cache, View view)
 {
+  return binImage(cache, view, 0, cache.image(view).rows);
+}
+
+const cv::Mat& TextureEdge::binImage(FeatureCache& cache, View view, int y0, int y1)
+{
   if (!binner_)
     throw std::logic_error("TextureEdge: used before initialize()");
-  // From the cache's grey image (shared with ShapeCircle and anyone else), in one pass.
-  const cv::Mat& gray = cache.gray(view);
-  return cache.get(view, cache_key_, [&](const cv::Mat&, cv::Mat& out) { binner_->binImage(gray, out); });
+  // From the cache's grey image (shared with ShapeCircle and anyone else), in one pass; a row's bins need
+  // the grey rows above and below it.
+  return cache.getRows(view, cache_key_, y0, y1, [&](const cv::Mat& image, cv::Mat& out, int a, int b) {
+    const cv::Mat& gray = cache.gray(view, a - 1, b + 1);
+    out.create(image.size(), CV_8UC1);
+    binner_->binImage(gray, out, a, b);
+  });
 }
 
 bool TextureEdge::learnTarget(FeatureCache& cache, View view, const cv::Rect& roi, std::string& error)
@@ -303,12 +320,9 @@ void TextureEdge::evaluate(FeatureCache& cache, const ImageHypotheses& hyp,
   if (!target_.valid() || n == 0)
     return;
 
-  const cv::Mat& bins = binImage(cache, hyp.view);  // once per view per frame, shared by every hypothesis
-  const int width = bins.cols;
-  const int height = bins.rows;
-  const size_t step = bins.step[0];
-  const uint8_t* data = bins.data;
-
+  const cv::Mat& image = cache.image(hyp.view);
+  const int width = image.cols;
+  const int height = image.rows;
   const int s = tunables_.samples;
   const int min_inside = (s * s + kMinInsideDenominator - 1) / kMinInsideDenominator;
   const float fixed_half = 0.5f * static_cast<float>(tunables_.window - 1);
@@ -317,6 +331,27 @@ void TextureEdge::evaluate(FeatureCache& cache, const ImageHypotheses& hyp,
   // Beyond this the window cannot have a quarter of its samples inside anyway; it also keeps cvRound in range.
   const float max_half = 4.0f * static_cast<float>(std::max(width, height));
   const double inv_two_sigma2 = 1.0 / (2.0 * tunables_.sigma * tunables_.sigma);
+  // radius <= 0 (or NaN): a 2D hypothesis with the fixed window; otherwise scale with the object.
+  auto halfSize = [&](int i) {
+    const float r = hyp.radius[i];
+    return std::min(r > 0.0f ? scale * std::max(r, min_radius) : fixed_half, max_half);
+  };
+
+  // Only the rows the windows reach need edge bins (a band of the image while tracking).
+  float top = static_cast<float>(height), bottom = -1.0f;
+  for (int i = 0; i < n; ++i)
+  {
+    if (!hyp.valid[i] || !std::isfinite(hyp.v[i]))
+      continue;
+    const float reach = halfSize(i) + 1.0f;  // + 1: rounding to pixel centres
+    top = std::min(top, hyp.v[i] - reach);
+    bottom = std::max(bottom, hyp.v[i] + reach);
+  }
+  const std::pair<int, int> rows = rowSpan(top, bottom, height);
+  // Once per view per frame (in the rows not binned yet), shared by every hypothesis.
+  const cv::Mat& bins = binImage(cache, hyp.view, rows.first, rows.second);
+  const size_t step = bins.step[0];
+  const uint8_t* data = bins.data;
 
   for (int i = 0; i < n; ++i)
   {
@@ -324,10 +359,7 @@ void TextureEdge::evaluate(FeatureCache& cache, const ImageHypotheses& hyp,
       continue;
     const float u = hyp.u[i];
     const float v = hyp.v[i];
-    const float r = hyp.radius[i];
-    // radius <= 0 (or NaN): a 2D hypothesis with the fixed window; otherwise scale with the object.
-    float half = r > 0.0f ? scale * std::max(r, min_radius) : fixed_half;
-    half = std::min(half, max_half);
+    const float half = halfSize(i);
     if (!window_.place(u, v, half, width, height, min_inside))
       continue;
 

@@ -1,5 +1,7 @@
 #include "stereo_pf/core/feature_cache.h"
 
+#include <algorithm>
+
 #include <opencv2/imgproc.hpp>
 
 namespace stereo_pf
@@ -23,13 +25,70 @@ const cv::Mat& FeatureCache::get(View view, const std::string& key, const Comput
   return e.mat[k];
 }
 
+const cv::Mat& FeatureCache::getRows(View view, const std::string& key, int y0, int y1, const RowCompute& compute)
+{
+  const cv::Mat& image = frame_.image(view);
+  y0 = std::max(y0, 0);
+  y1 = std::min(y1, image.rows);
+  Entry& e = entries_[key];
+  const int k = static_cast<int>(view);
+  int& have0 = e.row0[k];
+  int& have1 = e.row1[k];
+  if (e.frame_id[k] != frame_id_)
+  {
+    e.frame_id[k] = frame_id_;
+    have0 = have1 = 0;
+  }
+  if (have0 >= have1)
+  {
+    // Nothing yet this frame (an empty request still allocates the buffer).
+    compute(image, e.mat[k], y0, std::max(y0, y1));
+    have0 = y0;
+    have1 = std::max(y0, y1);
+    ++compute_count_;
+    return e.mat[k];
+  }
+  if (y0 >= y1)
+    return e.mat[k];
+  // Extend the valid range to cover [y0, y1); it stays one contiguous range.
+  if (y0 < have0)
+  {
+    compute(image, e.mat[k], y0, have0);
+    have0 = y0;
+    ++compute_count_;
+  }
+  if (y1 > have1)
+  {
+    compute(image, e.mat[k], have1, y1);
+    have1 = y1;
+    ++compute_count_;
+  }
+  return e.mat[k];
+}
+
 const cv::Mat& FeatureCache::gray(View view)
 {
-  return get(view, "gray", [](const cv::Mat& image, cv::Mat& out) {
-    if (image.channels() == 3)
-      cv::cvtColor(image, out, cv::COLOR_BGR2GRAY);
-    else
-      image.copyTo(out);
+  return gray(view, 0, frame_.image(view).rows);
+}
+
+const cv::Mat& FeatureCache::gray(View view, int y0, int y1)
+{
+  return getRows(view, "gray", y0, y1, [](const cv::Mat& image, cv::Mat& out, int a, int b) {
+    out.create(image.size(), CV_8UC1);
+    if (a >= b)
+      return;
+    cv::Mat rows = out.rowRange(a, b);
+    switch (image.channels())
+    {
+      case 3:
+        cv::cvtColor(image.rowRange(a, b), rows, cv::COLOR_BGR2GRAY);
+        break;
+      case 4:
+        cv::cvtColor(image.rowRange(a, b), rows, cv::COLOR_BGRA2GRAY);
+        break;
+      default:
+        image.rowRange(a, b).copyTo(rows);
+    }
   });
 }
 

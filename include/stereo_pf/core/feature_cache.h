@@ -33,8 +33,19 @@ public:
   /// Keys must encode every setting the product depends on (e.g. "hsi_bins/8x8x4/s0.10").
   const cv::Mat& get(View view, const std::string& key, const Compute& compute);
 
+  /// Function that fills rows [y0, y1) of `out`. It allocates `out` at the image's size itself
+  /// (`out.create()` keeps a buffer of that size, and the rows already in it) and must not write other rows.
+  using RowCompute = std::function<void(const cv::Mat& image, cv::Mat& out, int y0, int y1)>;
+  /// Like get(), for a product computed row by row, of which only rows [y0, y1) (clipped to the image)
+  /// are needed: rows already computed this frame are kept and only the missing ones are computed. A
+  /// model that reads only around its hypotheses asks for those rows; while tracking that is a band of
+  /// the image, not all of it. Rows that were not asked for this frame hold stale data: read only the
+  /// rows you asked for.
+  const cv::Mat& getRows(View view, const std::string& key, int y0, int y1, const RowCompute& compute);
   /// 8-bit grey image of a view.
   const cv::Mat& gray(View view);
+  /// Rows [y0, y1) (clipped) of the 8-bit grey image of a view (see getRows()).
+  const cv::Mat& gray(View view, int y0, int y1);
   /// Sobel gradient magnitude |S| = sqrt(Sx^2 + Sy^2) of the grey image (CV_32F), thesis eq. 4.1.
   const cv::Mat& gradientMagnitude(View view);
   /// Sobel x and y derivatives of the grey image (CV_32F each).
@@ -49,6 +60,8 @@ private:
   {
     cv::Mat mat[2];
     long frame_id[2] = { -1, -1 };
+    int row0[2] = { 0, 0 };  ///< rows [row0, row1) are valid this frame (getRows() products)
+    int row1[2] = { 0, 0 };
   };
   StereoFrame frame_;
   long frame_id_ = 0;

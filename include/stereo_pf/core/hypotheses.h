@@ -1,6 +1,9 @@
 // Image-space hypotheses: where a batch of particles says the object is in one image.
 #pragma once
 
+#include <algorithm>
+#include <cmath>
+#include <utility>
 #include <vector>
 
 #include "stereo_pf/core/stereo_geometry.h"
@@ -27,5 +30,15 @@ struct ImageHypotheses
     valid.resize(n);
   }
 };
+
+/// Pixel rows [first, second) of an image of `height` rows that hold the row coordinates [top, bottom],
+/// clipped to the image; empty (first >= second) when bottom < top or the span misses the image. Models use
+/// it to ask FeatureCache::getRows() for just the rows their hypotheses' windows reach.
+inline std::pair<int, int> rowSpan(float top, float bottom, int height)
+{
+  const int first = static_cast<int>(std::floor(std::max(top, 0.0f)));
+  const int last = static_cast<int>(std::ceil(std::min(bottom, static_cast<float>(height - 1)))) + 1;
+  return { first, last };
+}
 
 }  // namespace stereo_pf

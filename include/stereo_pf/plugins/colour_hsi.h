@@ -84,6 +84,8 @@ public:
   const HsiBinning& binning() const { return binning_; }
   /// The per-view bin-index image of the cache's current frame (CV_8UC1), computed on first use.
   const cv::Mat& binImage(FeatureCache& cache, View view);
+  /// The same image, of which only rows [y0, y1) are guaranteed (FeatureCache::getRows()).
+  const cv::Mat& binImage(FeatureCache& cache, View view, int y0, int y1);
 
 protected:
   /// Read and validate every parameter, build the colour table and the scratch buffers.

@@ -134,6 +134,14 @@ private:
   std::vector<float> similarity_lut_;   // exp(-d^2 / (2 sigma^2)) by quantised |d|
   std::vector<float> half_reciprocal_;  // 1 / (2 x) for x = 0 .. 510 (sub-pixel peak positions)
   std::vector<float> line_c_, line_s_;  // cos, sin theta_k, padded to a multiple of 4 lines
+  /// The contour of one hypothesis: centre, axis direction and semi-axes (a circle: a = b = r, e = (1, 0)).
+  struct Contour
+  {
+    float cu, cv, ex, ey, a, b, r;
+    bool ellipse;  ///< the contour is the sphere's projected ellipse, not the circle of radius r
+    bool usable;   ///< false when the hypothesis is invalid or cannot be measured
+  };
+  std::vector<Contour> contours_;       // scratch: the contour of every hypothesis of one batch
   std::vector<int> start_x_, start_y_;  // scratch: rounded contour point of each line of one hypothesis
   std::vector<float> start_e_;          // scratch: its rounding offset along the line, px
   std::vector<uint8_t> intensity_;      // scratch: grey levels along one line (padded for vector loads)

@@ -70,6 +70,9 @@ public:
   /// pixel, in one pass of 16-lane vector code (SSE2 baseline): ~0.23 ms at 640x480 where two float Sobel
   /// images, their magnitude and a conversion took ~0.33 ms. Throws std::invalid_argument for another type.
   void binImage(const cv::Mat& gray, cv::Mat& bins) const;
+  /// The same for rows [y0, y1) of `bins` only (0 <= y0 <= y1 <= rows): it reads grey rows y0 - 1 to y1, and
+  /// leaves the other rows of `bins` as they were.
+  void binImage(const cv::Mat& gray, cv::Mat& bins, int y0, int y1) const;
 
 private:
   EdgeBinning binning_;
@@ -128,6 +131,8 @@ public:
   const EdgeBinning& binning() const { return binning_; }
   /// The per-view edge-bin image of the cache's current frame (CV_8UC1), computed on first use.
   const cv::Mat& binImage(FeatureCache& cache, View view);
+  /// The same image, of which only rows [y0, y1) are guaranteed (FeatureCache::getRows()).
+  const cv::Mat& binImage(FeatureCache& cache, View view, int y0, int y1);
 
 protected:
   /// Read and validate every parameter, build the bin table and the scratch buffers.
