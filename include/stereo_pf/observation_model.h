@@ -38,6 +38,19 @@ public:
   virtual void evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
                         Eigen::Ref<Eigen::VectorXd> similarity) = 0;
 
+  /// Optional: true for a model that scores a hypothesis by comparing its left and right images with each
+  /// other (stereo matching) instead of comparing each image with the target. The engine then calls
+  /// evaluatePair() once per particle set observed in both images, instead of evaluate() per view; sets
+  /// observed in one image only (the stereo-constraints model's 2D sets, whose pairing is the coupling's job)
+  /// are not scored by it. Its similarity does not count towards the evidence that the target is seen
+  /// (two views that agree say nothing about what they show).
+  virtual bool comparesViews() const { return false; }
+  /// Evaluate hypothesis pairs: entry i of `left` (View::Left) and of `right` (View::Right) are the same
+  /// particle. Same outputs and rules as evaluate(). Only called when comparesViews(); the default throws
+  /// std::logic_error.
+  virtual void evaluatePair(FeatureCache& cache, const ImageHypotheses& left, const ImageHypotheses& right,
+                            Eigen::Ref<Eigen::VectorXd> log_likelihood, Eigen::Ref<Eigen::VectorXd> similarity);
+
   /// Optional: a per-pixel map of how much each pixel looks like the target (CV_8UC1, 0..255, image size)
   /// for the engine's detection-driven proposals while searching or lost (e.g. a colour back-projection).
   /// Compute it through `cache` so it is made once per frame. Return false when the model has no such map

@@ -366,16 +366,32 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     // The previous weights are the prior of this step (uniform after resampling).
     p.log_weights = p.weights.array().log();
     sum_sim_.setZero(n);
+    scratch_ll_.resize(n);
+    scratch_sim_.resize(n);
     int cues = 0;
+    const ImageHypotheses* left = nullptr;
+    const ImageHypotheses* right = nullptr;
     for (ImageHypotheses& hyp : hypotheses_[s])
     {
       state_model_->project(geometry, s, p, hyp);
-      for (auto& model : observation_models_)
+      (hyp.view == View::Left ? left : right) = &hyp;
+    }
+    for (auto& model : observation_models_)
+    {
+      if (!model->enabled())
+        continue;
+      if (model->comparesViews())
       {
-        if (!model->enabled())
-          continue;
-        scratch_ll_.resize(n);
-        scratch_sim_.resize(n);
+        // Scores the agreement of a particle's two images: only for sets seen in both, and not evidence.
+        if (left && right)
+        {
+          model->evaluatePair(cache_, *left, *right, scratch_ll_, scratch_sim_);
+          p.log_weights += model->weight() * scratch_ll_;
+        }
+        continue;
+      }
+      for (const ImageHypotheses& hyp : hypotheses_[s])
+      {
         model->evaluate(cache_, hyp, scratch_ll_, scratch_sim_);
         p.log_weights += model->weight() * scratch_ll_;
         sum_sim_ += scratch_sim_;

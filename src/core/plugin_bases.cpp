@@ -3,6 +3,7 @@
 #include "stereo_pf/state_model.h"
 
 #include <limits>
+#include <stdexcept>
 
 namespace stereo_pf
 {
@@ -23,6 +24,12 @@ void ObservationModel::readCommon()
 void ObservationModel::reconfigure()
 {
   readCommon();
+}
+
+void ObservationModel::evaluatePair(FeatureCache&, const ImageHypotheses&, const ImageHypotheses&,
+                                    Eigen::Ref<Eigen::VectorXd>, Eigen::Ref<Eigen::VectorXd>)
+{
+  throw std::logic_error(name_ + ": evaluatePair() called on a model that does not compare views");
 }
 
 void StateModel::initialize(const std::string& name, const Parameters& params)

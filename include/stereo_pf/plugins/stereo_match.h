@@ -1,0 +1,105 @@
+// Stereo-consistency observation model, pluginlib class stereo_pf/StereoMatch. Declared here so tests can
+// construct it directly; defined and exported in plugins/observation/stereo_match.cpp.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "stereo_pf/observation_model.h"
+
+namespace stereo_pf
+{
+/// Stereo likelihood: do a 3D hypothesis's left and right images show the same thing?
+///
+/// The target cues (colour, texture, shape) compare each image with the learned target. Inside a uniformly
+/// coloured ball they cannot tell hypotheses a pixel or two apart, and each view's error goes straight into
+/// the disparity: at 1.1 m with f = 525 px and b = 9 cm one pixel of disparity is 2.6 cm of depth. This cue
+/// compares the two images with each other instead, which measures the disparity directly (thesis 6.3: the
+/// depth is the disparity's). The grey images of both views are sampled on the same grid of offsets around
+/// the particle's left and right centres, over a disc of radius `window_scale` * apparent radius (> 1, so
+/// the disc holds the ball's silhouette, where the images change fastest), and compared by the zero-mean
+/// normalised cross-correlation
+///   ZNCC = cov(L, R) / sqrt(max(var L, c^2) max(var R, c^2)),   c = `min_contrast` grey levels,
+/// with log-likelihood -(1 - ZNCC) / (2 sigma^2) (the form of eq. 5.5) and similarity max(0, ZNCC).
+/// ZNCC ignores the gain and offset between the cameras; the floor c keeps two featureless patches (sensor
+/// noise only) near 0 instead of letting their noise correlate.
+///
+/// Sampling: `rows` rows evenly spaced across the disc (at (k + 1) / (rows + 1) of its height), and on each
+/// row the columns `column_step` whole pixels apart that lie inside the disc. Whole-pixel steps give every
+/// sample of one view the centre's sub-pixel phase, so the samples are interpolated linearly along the rows
+/// (the epipolar lines) with one pair of weights per view, and the likelihood varies continuously with the
+/// disparity instead of in one-pixel steps. Dense along the rows, because only horizontal shifts change the
+/// disparity; a few rows suffice (rows are rounded: a vertical shift moves both views alike). The grey
+/// levels are converted once per frame, only over the region the hypotheses can read.
+///
+/// The cue says nothing about whether the matched thing is the target, so it is not part of the evidence
+/// (comparesViews()). It scores sets observed in both images, i.e. the 3D state models; the
+/// stereo-constraints model's 2D sets are observed in one image each and are not scored by it (their
+/// pairing is the coupling's job). evaluate() on one view alone gives every hypothesis the same value.
+/// There is no target to learn: learnTarget() only checks the region, and nothing is saved.
+///
+/// Cost per hypothesis pair: about rows * 2 * window_scale * radius / column_step samples per view (~30 for a
+/// 17 px ball with the defaults). Hypotheses without a radius (2D), with valid == 0 in either view, or with
+/// fewer than half of their samples inside both images get the log-likelihood of ZNCC = 0 and similarity 0.
+/// Not thread-safe (scratch buffers are members).
+///
+/// Parameters (in the plugin's namespace): sigma (0.1, 0.001..10), window_scale (1.35, 0.2..3),
+/// rows (2, 1..41), column_step (3 px, 1..20), min_contrast (4 grey levels, 0.1..100),
+/// min_radius (2 px, 0.5..100); all are re-read by reconfigure().
+class StereoMatch : public ObservationModel
+{
+public:
+  StereoMatch() = default;
+
+  /// Nothing to learn: true when `roi` lies in the image (so a bad region is still reported).
+  bool learnTarget(FeatureCache& cache, View view, const cv::Rect& roi, std::string& error) override;
+  /// Always true: the cue needs no target.
+  bool hasTarget() const override { return true; }
+  /// One view alone cannot be matched: every hypothesis gets the log-likelihood of ZNCC = 0, similarity 0.
+  void evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
+                Eigen::Ref<Eigen::VectorXd> similarity) override;
+  /// True: scored through evaluatePair().
+  bool comparesViews() const override { return true; }
+  /// ZNCC of each particle's left and right grey patches (see the class comment).
+  void evaluatePair(FeatureCache& cache, const ImageHypotheses& left, const ImageHypotheses& right,
+                    Eigen::Ref<Eigen::VectorXd> log_likelihood, Eigen::Ref<Eigen::VectorXd> similarity) override;
+  /// Nothing to save.
+  void saveTarget(cv::FileStorage& /*fs*/) const override {}
+  /// Nothing to load: always true.
+  bool loadTarget(const cv::FileNode& /*node*/, std::string& /*error*/) override { return true; }
+  /// Re-read every parameter; on a bad value throws ParameterError and keeps the previous settings.
+  void reconfigure() override;
+
+  /// ZNCC of one hypothesis pair, NaN when it cannot be judged (for tests and diagnostics).
+  double zncc(FeatureCache& cache, float u_left, float u_right, float v, float radius);
+
+protected:
+  void onInitialize() override;
+
+private:
+  struct Tunables
+  {
+    double sigma = 0.1;
+    double window_scale = 1.35;
+    int rows = 2;
+    int column_step = 3;
+    double min_contrast = 4.0;
+    double min_radius = 2.0;
+  };
+  Tunables readTunables() const;
+  /// Half-size of the compared disc for an apparent radius.
+  double halfSize(float radius) const;
+  /// ZNCC of one pair on grey regions whose pixel (0, 0) is image pixel `*_origin` (NaN when it cannot be
+  /// judged).
+  double match(const cv::Mat& left, cv::Point left_origin, const cv::Mat& right, cv::Point right_origin, float u_left,
+               float u_right, float v, float radius) const;
+  /// Grey version of the part of `hyp.view` the valid pairs' discs can read (whole image at worst).
+  void greyRegion(FeatureCache& cache, const ImageHypotheses& hyp, const ImageHypotheses& partner, cv::Mat& grey,
+                  cv::Point& origin);
+
+  Tunables tunables_;
+  double invalid_log_likelihood_ = 0.0;  // log-likelihood of ZNCC = 0
+  cv::Mat grey_[2];                       // scratch: the grey regions of the left and right image
+};
+
+}  // namespace stereo_pf

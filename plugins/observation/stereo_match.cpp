@@ -1,0 +1,241 @@
+// Stereo-consistency observation model (ZNCC of a hypothesis's left and right grey patches);
+// see include/stereo_pf/plugins/stereo_match.h.
+#include "stereo_pf/plugins/stereo_match.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <stdexcept>
+
+#include <opencv2/imgproc.hpp>
+#include <pluginlib/class_list_macros.hpp>
+
+#include "stereo_pf/core/histogram.h"
+
+namespace stereo_pf
+{
+void StereoMatch::onInitialize()
+{
+  tunables_ = readTunables();
+  invalid_log_likelihood_ = -1.0 / (2.0 * tunables_.sigma * tunables_.sigma);
+}
+
+StereoMatch::Tunables StereoMatch::readTunables() const
+{
+  const Parameters& p = params();
+  Tunables t;
+  t.sigma = p.getDouble("sigma", t.sigma, 0.001, 10.0);
+  t.window_scale = p.getDouble("window_scale", t.window_scale, 0.2, 3.0);
+  t.rows = p.getInt("rows", t.rows, 1, 41);
+  t.column_step = p.getInt("column_step", t.column_step, 1, 20);
+  t.min_contrast = p.getDouble("min_contrast", t.min_contrast, 0.1, 100.0);
+  t.min_radius = p.getDouble("min_radius", t.min_radius, 0.5, 100.0);
+  return t;
+}
+
+void StereoMatch::reconfigure()
+{
+  const Tunables t = readTunables();  // throws before anything changes
+  ObservationModel::reconfigure();
+  tunables_ = t;
+  invalid_log_likelihood_ = -1.0 / (2.0 * t.sigma * t.sigma);
+}
+
+bool StereoMatch::learnTarget(FeatureCache& cache, View view, const cv::Rect& roi, std::string& error)
+{
+  cv::Rect inner;
+  std::string reason;
+  if (!targetRegion(cache.image(view).size(), roi, 0.0, inner, reason))
+  {
+    error = name() + ": " + reason;
+    return false;
+  }
+  return true;
+}
+
+void StereoMatch::evaluate(FeatureCache&, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
+                           Eigen::Ref<Eigen::VectorXd> similarity)
+{
+  if (log_likelihood.size() != hyp.size() || similarity.size() != hyp.size())
+    throw std::invalid_argument(name() + ": evaluate: outputs must have " + std::to_string(hyp.size()) + " entries");
+  log_likelihood.setConstant(invalid_log_likelihood_);
+  similarity.setZero();
+}
+
+double StereoMatch::zncc(FeatureCache& cache, float u_left, float u_right, float v, float radius)
+{
+  return match(cache.gray(View::Left), cv::Point(0, 0), cache.gray(View::Right), cv::Point(0, 0), u_left, u_right, v,
+               radius);
+}
+
+namespace
+{
+int floorDiv(int a, int b)  // b > 0
+{
+  return a >= 0 ? a / b : -((-a + b - 1) / b);
+}
+
+struct MatchSums
+{
+  int n = 0;
+  float sa = 0.0f, sb = 0.0f, saa = 0.0f, sbb = 0.0f, sab = 0.0f;
+};
+}  // namespace
+
+double StereoMatch::halfSize(float radius) const
+{
+  return tunables_.window_scale * std::max(static_cast<double>(radius), tunables_.min_radius);
+}
+
+double StereoMatch::match(const cv::Mat& left, cv::Point left_origin, const cv::Mat& right, cv::Point right_origin,
+                          float u_left, float u_right, float v, float radius) const
+{
+  constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  if (!(radius > 0.0f) || !std::isfinite(u_left) || !std::isfinite(u_right) || !std::isfinite(v))
+    return kNaN;
+  // Work in the regions' own coordinates; outside a region is outside the image for this hypothesis.
+  u_left -= static_cast<float>(left_origin.x);
+  u_right -= static_cast<float>(right_origin.x);
+  const float v_left = v - static_cast<float>(left_origin.y);
+  const int row_shift = left_origin.y - right_origin.y;  // right row = left row + row_shift
+  const double half = halfSize(radius);
+  const int max_extent = std::max({ left.cols, left.rows, right.cols, right.rows });
+  if (half > 4.0 * max_extent)
+    return kNaN;
+  // Samples on `rows` rows across the disc, `column_step` whole pixels apart along each row: every sample of
+  // a view shares the centre's sub-pixel phase, hence one pair of interpolation weights per view. Dense
+  // along the rows because only horizontal shifts change the disparity; a few rows suffice.
+  const int step = tunables_.column_step;
+  const int rows = tunables_.rows;
+  const double row_spacing = 2.0 * half / (rows + 1);
+  const double half2 = half * half;
+  const double xl_f = std::floor(u_left), xr_f = std::floor(u_right);
+  // Far outside: nothing to sample (and the int conversions below stay in range).
+  const double far = half + 2.0 * max_extent;
+  if (std::abs(xl_f) > far || std::abs(xr_f) > far || std::abs(v_left) > far)
+    return kNaN;
+  const int xl0 = static_cast<int>(xl_f), xr0 = static_cast<int>(xr_f);
+  const float fl = u_left - static_cast<float>(xl_f), fr = u_right - static_cast<float>(xr_f);
+  // Offsets whose columns x and x + 1 lie in both regions.
+  const int in_lo = std::max(-floorDiv(xl0, step), -floorDiv(xr0, step));
+  const int in_hi = std::min(floorDiv(left.cols - 2 - xl0, step), floorDiv(right.cols - 2 - xr0, step));
+
+  int nominal = 0;
+  MatchSums m;
+  for (int k = 0; k < rows; ++k)
+  {
+    const double dy = (k - 0.5 * (rows - 1)) * row_spacing;
+    const int kx_max = static_cast<int>(std::sqrt(std::max(0.0, half2 - dy * dy)) / step);
+    nominal += 2 * kx_max + 1;
+    const int yl = static_cast<int>(std::lround(v_left + dy)), yr = yl + row_shift;
+    const int lo = std::max(-kx_max, in_lo), hi = std::min(kx_max, in_hi);
+    if (yl < 0 || yl >= left.rows || yr < 0 || yr >= right.rows || lo > hi)
+      continue;
+    const uint8_t* lrow = left.ptr<uint8_t>(yl);
+    const uint8_t* rrow = right.ptr<uint8_t>(yr);
+    // Relative to mid-grey: keeps the float sums of squares well conditioned.
+    for (int kx = lo; kx <= hi; ++kx)
+    {
+      const int xl = xl0 + kx * step, xr = xr0 + kx * step;
+      const float l0 = lrow[xl], r0 = rrow[xr];
+      const float a = l0 + fl * (static_cast<float>(lrow[xl + 1]) - l0) - 128.0f;
+      const float b = r0 + fr * (static_cast<float>(rrow[xr + 1]) - r0) - 128.0f;
+      m.sa += a;
+      m.sb += b;
+      m.saa += a * a;
+      m.sbb += b * b;
+      m.sab += a * b;
+    }
+    m.n += hi - lo + 1;
+  }
+  if (m.n < 3 || 2 * m.n < nominal)
+    return kNaN;
+  const double inv_n = 1.0 / m.n;
+  const double floor2 = tunables_.min_contrast * tunables_.min_contrast;
+  const double ma = m.sa * inv_n, mb = m.sb * inv_n;
+  const double var_a = std::max(m.saa * inv_n - ma * ma, floor2);
+  const double var_b = std::max(m.sbb * inv_n - mb * mb, floor2);
+  const double cov = m.sab * inv_n - ma * mb;
+  return std::max(-1.0, std::min(1.0, cov / std::sqrt(var_a * var_b)));
+}
+
+void StereoMatch::greyRegion(FeatureCache& cache, const ImageHypotheses& hyp, const ImageHypotheses& partner,
+                             cv::Mat& grey, cv::Point& origin)
+{
+  const cv::Mat& image = cache.image(hyp.view);
+  // Bounding box of every window that will be read (plus the interpolation's extra column).
+  double x0 = HUGE_VAL, x1 = -HUGE_VAL, y0 = HUGE_VAL, y1 = -HUGE_VAL;
+  for (int i = 0; i < hyp.size(); ++i)
+  {
+    if (!hyp.valid[i] || !partner.valid[i] || !(hyp.radius[i] > 0.0f) || !std::isfinite(hyp.u[i]) ||
+        !std::isfinite(hyp.v[i]))
+      continue;
+    const double half = halfSize(hyp.radius[i]);
+    if (half > 4.0 * std::max(image.cols, image.rows))
+      continue;  // match() judges these unobservable
+    x0 = std::min(x0, hyp.u[i] - half);
+    x1 = std::max(x1, hyp.u[i] + half);
+    y0 = std::min(y0, hyp.v[i] - half);
+    y1 = std::max(y1, hyp.v[i] + half);
+  }
+  const cv::Rect whole(0, 0, image.cols, image.rows);
+  cv::Rect box;
+  if (x0 <= x1)
+  {
+    const auto clip = [](double x, int lo, int hi) { return static_cast<int>(std::max<double>(lo, std::min<double>(hi, x))); };
+    const int bx0 = clip(std::floor(x0) - 1, 0, image.cols), bx1 = clip(std::floor(x1) + 3, 0, image.cols);
+    const int by0 = clip(std::floor(y0) - 1, 0, image.rows), by1 = clip(std::ceil(y1) + 2, 0, image.rows);
+    box = cv::Rect(bx0, by0, bx1 - bx0, by1 - by0) & whole;
+  }
+  if (box.empty())
+    box = cv::Rect(0, 0, std::min(2, image.cols), std::min(2, image.rows));
+  origin = box.tl();
+  // Only the region is converted: while tracking a few thousand pixels instead of two whole images.
+  if (image.channels() == 1)
+    grey = image(box);
+  else if (image.channels() == 3)
+    cv::cvtColor(image(box), grey, cv::COLOR_BGR2GRAY);
+  else if (image.channels() == 4)
+    cv::cvtColor(image(box), grey, cv::COLOR_BGRA2GRAY);
+  else
+    throw std::invalid_argument(name() + ": images must be 8-bit grey, BGR or BGRA");
+}
+
+void StereoMatch::evaluatePair(FeatureCache& cache, const ImageHypotheses& left, const ImageHypotheses& right,
+                               Eigen::Ref<Eigen::VectorXd> log_likelihood, Eigen::Ref<Eigen::VectorXd> similarity)
+{
+  const int n = left.size();
+  if (right.size() != n || log_likelihood.size() != n || similarity.size() != n ||
+      static_cast<int>(left.v.size()) != n || static_cast<int>(left.radius.size()) != n ||
+      static_cast<int>(left.valid.size()) != n || static_cast<int>(right.valid.size()) != n ||
+      static_cast<int>(right.v.size()) != n || static_cast<int>(right.radius.size()) != n)
+    throw std::invalid_argument(name() + ": evaluatePair: hypothesis arrays and outputs must all have " +
+                                std::to_string(n) + " entries");
+  if (left.view != View::Left || right.view != View::Right)
+    throw std::invalid_argument(name() + ": evaluatePair: expects the left view's hypotheses first");
+  log_likelihood.setConstant(invalid_log_likelihood_);
+  similarity.setZero();
+  if (n == 0)
+    return;
+  cv::Point origin_left, origin_right;
+  greyRegion(cache, left, right, grey_[0], origin_left);
+  greyRegion(cache, right, left, grey_[1], origin_right);
+  const double inv_two_sigma2 = 1.0 / (2.0 * tunables_.sigma * tunables_.sigma);
+  for (int i = 0; i < n; ++i)
+  {
+    if (!left.valid[i] || !right.valid[i])
+      continue;
+    // Rectified: both views share the row; the radius is the left one (equal for a point model).
+    const double z = match(grey_[0], origin_left, grey_[1], origin_right, left.u[i], right.u[i], left.v[i],
+                           left.radius[i]);
+    if (std::isnan(z))
+      continue;
+    log_likelihood[i] = -(1.0 - z) * inv_two_sigma2;
+    similarity[i] = std::max(0.0, z);
+  }
+}
+
+}  // namespace stereo_pf
+
+PLUGINLIB_EXPORT_CLASS(stereo_pf::StereoMatch, stereo_pf::ObservationModel)
