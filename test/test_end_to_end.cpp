@@ -94,8 +94,34 @@ TEST(EndToEnd, UnclutteredPendulumPosition3D)
     const auto s = track(b, "--state Position3D --particles 1000 --seed " + std::to_string(seed));
     EXPECT_GE(num(s, "converged_at"), 0) << "seed " << seed;
     EXPECT_LE(num(s, "converged_at"), 30) << "seed " << seed;
-    // Issue 2 asks for <= 1.5 cm here; colour alone reaches ~2.5 cm (see docs/results.md), so this
-    // checks the level actually reached and the gap stays visible in the report, not hidden here.
+    // Colour alone reaches ~2.5 cm (depth: see docs/results.md); issue 2's 1.5 cm is checked with the
+    // stereo cue below.
+    EXPECT_LE(num(s, "rms_cm"), 3.0) << "seed " << seed;
+    EXPECT_EQ(num(s, "frames_over_10cm"), 0) << "seed " << seed;
+  }
+}
+
+// Issue 2's 1.5 cm: colour finds the ball, the stereo cue pins its disparity (config/colour_stereo.yaml).
+TEST(EndToEnd, UnclutteredPendulumColourAndStereoWithinOneAndAHalfCm)
+{
+  const std::string b = bag("pendulum_uncluttered", 150);
+  for (int seed : { 1, 2 })
+  {
+    const auto s = track(b, "--config config/colour_stereo.yaml --particles 1000 --seed " + std::to_string(seed));
+    EXPECT_GE(num(s, "converged_at"), 0) << "seed " << seed;
+    EXPECT_LE(num(s, "converged_at"), 30) << "seed " << seed;
+    EXPECT_LE(num(s, "rms_cm"), 1.5) << "seed " << seed;
+  }
+}
+
+// Issue 3: all cues keep the target while a textured square of its colour crosses it (config/multi_cue.yaml).
+TEST(EndToEnd, AllCuesKeepTheTargetPastTheColourDistractor)
+{
+  const std::string b = bag("colour_distractor", 150);
+  for (int seed : { 1, 2 })
+  {
+    const auto s = track(b, "--config config/multi_cue.yaml --particles 1000 --seed " + std::to_string(seed));
+    EXPECT_GE(num(s, "converged_at"), 0) << "seed " << seed;
     EXPECT_LE(num(s, "rms_cm"), 3.0) << "seed " << seed;
     EXPECT_EQ(num(s, "frames_over_10cm"), 0) << "seed " << seed;
   }

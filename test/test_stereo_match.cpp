@@ -7,8 +7,12 @@
 #include <memory>
 #include <random>
 
+#include "stereo_pf/core/engine.h"
 #include "stereo_pf/core/feature_cache.h"
 #include "stereo_pf/core/parameters.h"
+#include "stereo_pf/core/scene.h"
+#include "stereo_pf/plugins/colour_hsi.h"
+#include "stereo_pf/plugins/position_3d.h"
 #include "stereo_pf/plugins/stereo_match.h"
 
 using namespace stereo_pf;
@@ -231,4 +235,84 @@ int main(int argc, char** argv)
 {
   testing::InitGoogleTest(&argc, argv);
   return RUN_ALL_TESTS();
+}
+
+// With only_while_tracking (the default) the engine consults the stereo cue only in frames that follow a
+// frame in the tracking state; without it, in every frame.
+namespace
+{
+class CountingStereoMatch : public StereoMatch
+{
+public:
+  int calls = 0;
+  void evaluatePair(FeatureCache& cache, const ImageHypotheses& left, const ImageHypotheses& right,
+                    Eigen::Ref<Eigen::VectorXd> log_likelihood, Eigen::Ref<Eigen::VectorXd> similarity) override
+  {
+    ++calls;
+    StereoMatch::evaluatePair(cache, left, right, log_likelihood, similarity);
+  }
+};
+
+// Frames (k) after which the engine was tracking, and the stereo cue's call count after each frame.
+void runEngine(bool only_while_tracking, std::vector<bool>& tracking_before, std::vector<int>& calls_after)
+{
+  SceneDescription scene = loadScene(std::string(SCENES_DIR) + "/pendulum_uncluttered.yaml");
+  scene.frames = 20;
+  SceneRenderer renderer(scene);
+  auto state = std::make_shared<Position3D>();
+  state->initialize("state_model", Parameters());
+  auto colour = std::make_shared<ColourHSI>();
+  colour->initialize("colour", Parameters());
+  auto stereo = std::make_shared<CountingStereoMatch>();
+  Parameters p;
+  p.set("only_while_tracking", only_while_tracking);
+  stereo->initialize("stereo", p);
+  EngineConfig config;
+  config.particles = 300;
+  config.seed = 3;
+  FilterEngine engine(state, { colour, stereo }, config);
+  bool tracking = false;
+  cv::Mat left, right;
+  for (int k = 0; k < renderer.frames(); ++k)
+  {
+    renderer.render(k, left, right);
+    StereoFrame frame;
+    frame.left = left;
+    frame.right = right;
+    frame.stamp = renderer.stamp(k);
+    frame.geometry = renderer.geometry();
+    if (k == 0)
+    {
+      std::string error;
+      ASSERT_TRUE(engine.learnTarget(frame, renderer.targetRoi(0), error)) << error;
+    }
+    tracking_before.push_back(tracking);
+    tracking = engine.step(frame).state == TrackState::Tracking;
+    calls_after.push_back(stereo->calls);
+  }
+}
+}  // namespace
+
+TEST(StereoMatch, EngineUsesItOnlyWhileTracking)
+{
+  std::vector<bool> tracking_before;
+  std::vector<int> calls;
+  runEngine(true, tracking_before, calls);
+  ASSERT_EQ(calls.size(), 20u);
+  ASSERT_FALSE(tracking_before[0]);  // the first frame is always a search
+  EXPECT_EQ(calls[0], 0);
+  int expected = 0, tracked = 0;
+  for (size_t k = 0; k < calls.size(); ++k)
+  {
+    expected += tracking_before[k] ? 1 : 0;  // one call per frame (one 3D set)
+    tracked += tracking_before[k] ? 1 : 0;
+    EXPECT_EQ(calls[k], expected) << "frame " << k;
+  }
+  EXPECT_GT(tracked, 10);  // it did track, so the cue was used
+
+  tracking_before.clear();
+  calls.clear();
+  runEngine(false, tracking_before, calls);
+  for (size_t k = 0; k < calls.size(); ++k)
+    EXPECT_EQ(calls[k], static_cast<int>(k) + 1) << "frame " << k;
 }

@@ -45,6 +45,10 @@ public:
   /// are not scored by it. Its similarity does not count towards the evidence that the target is seen
   /// (two views that agree say nothing about what they show).
   virtual bool comparesViews() const { return false; }
+  /// Optional: true for a model that only refines an object the other cues have found. The engine skips it
+  /// while searching or lost, where what it rewards (e.g. any surface whose two views agree) would compete
+  /// with the target's cues for the particles instead of sharpening them.
+  virtual bool onlyWhileTracking() const { return false; }
   /// Evaluate hypothesis pairs: entry i of `left` (View::Left) and of `right` (View::Right) are the same
   /// particle. Same outputs and rules as evaluate(). Only called when comparesViews(); the default throws
   /// std::logic_error.

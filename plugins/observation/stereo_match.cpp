@@ -31,6 +31,7 @@ StereoMatch::Tunables StereoMatch::readTunables() const
   t.column_step = p.getInt("column_step", t.column_step, 1, 20);
   t.min_contrast = p.getDouble("min_contrast", t.min_contrast, 0.1, 100.0);
   t.min_radius = p.getDouble("min_radius", t.min_radius, 0.5, 100.0);
+  t.only_while_tracking = p.getBool("only_while_tracking", t.only_while_tracking);
   return t;
 }
 

@@ -378,7 +378,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     }
     for (auto& model : observation_models_)
     {
-      if (!model->enabled())
+      if (!model->enabled() || (model->onlyWhileTracking() && state_ != TrackState::Tracking))
         continue;
       if (model->comparesViews())
       {

@@ -60,6 +60,8 @@ public:
                 Eigen::Ref<Eigen::VectorXd> similarity) override;
   /// True: scored through evaluatePair().
   bool comparesViews() const override { return true; }
+  /// `only_while_tracking` (default true): it sharpens depth once colour, texture or shape found the object.
+  bool onlyWhileTracking() const override { return tunables_.only_while_tracking; }
   /// ZNCC of each particle's left and right grey patches (see the class comment).
   void evaluatePair(FeatureCache& cache, const ImageHypotheses& left, const ImageHypotheses& right,
                     Eigen::Ref<Eigen::VectorXd> log_likelihood, Eigen::Ref<Eigen::VectorXd> similarity) override;
@@ -85,6 +87,7 @@ private:
     int column_step = 3;
     double min_contrast = 4.0;
     double min_radius = 2.0;
+    bool only_while_tracking = true;
   };
   Tunables readTunables() const;
   /// Half-size of the compared disc for an apparent radius.
