@@ -30,7 +30,11 @@ SHORT = {"StereoConstraints": "SC", "Position3D": "3D", "Velocity3D": "3D+veloci
 BASELINES = ["csrt", "kcf", "camshift"]
 SWEEP_SCENES = ["pendulum_uncluttered", "pendulum_cluttered"]
 OTHER_SCENES = ["occlusion", "multi_object", "checkered_cluttered", "colour_distractor"]
-CUE_SCENES = ["checkered_cluttered", "colour_distractor"]  # also run with all three cues
+CUE_SCENES = ["checkered_cluttered", "colour_distractor"]  # also run with the thesis's three cues alone
+# Position3D (1000 particles, every scene) with the other shipped configurations besides colour alone.
+CONFIGS = [("Position3D colour+stereo", ["--config", "config/colour_stereo.yaml"]),
+           ("Position3D all cues", ["--config", "config/multi_cue.yaml"])]
+THREE_CUES = ("Position3D colour+texture+shape", ["--config", "config/multi_cue.yaml", "--set", "stereo/enabled=false"])
 # Thesis Table 7.1: frames per second on a 1.8 GHz Pentium 4 at 320x240 (SC per set, 3D).
 THESIS_FPS = {200: (16.60, 25.00), 400: (6.23, 14.20), 800: (1.92, 7.69), 1000: (1.25, 6.25),
               1500: (0.63, 4.34), 2000: (0.35, 3.22), 4000: (0.07, 1.63)}
@@ -67,10 +71,9 @@ def plan(seeds, quick):
             for n in (counts if scene in SWEEP_SCENES else [1000]):
                 for s in range(1, seeds + 1):
                     add(scene, f, ["--state", f, "--particles", str(n), "--seed", str(s)], n, s)
-        if scene in CUE_SCENES:
+        for label, cfg in CONFIGS + ([THREE_CUES] if scene in CUE_SCENES else []):
             for s in range(1, seeds + 1):
-                add(scene, "Position3D all cues", ["--config", "config/multi_cue.yaml", "--state", "Position3D",
-                                                   "--particles", "1000", "--seed", str(s)], 1000, s)
+                add(scene, label, cfg + ["--state", "Position3D", "--particles", "1000", "--seed", str(s)], 1000, s)
         for b in BASELINES:  # deterministic: one run each
             add(scene, b, ["--baseline", b], 0, 0)
     cost = lambda r: (r.particles * (2.5 if "Stereo" in r.label else 1.0) + (30000 if r.particles == 0 else 0))
@@ -182,8 +185,10 @@ def stats(values):
 class Results:
     """Per (scene, label, particles): the runs' summaries and per-frame arrays."""
 
-    def __init__(self, runs, out_dir, data_dir):
+    def __init__(self, runs, out_dir, data_dir, timing_runs=()):
         self.groups = collections.OrderedDict()
+        self.timing = {r.key(): r.summary["ms_per_frame"] for r in timing_runs
+                       if r.error is None and "ms_per_frame" in r.summary}
         self.truth = {}
         for r in runs:
             if r.scene not in self.truth:
@@ -212,7 +217,10 @@ class Results:
         return [100 * mean_error(r.frames) for r in self.get(scene, label, n)]
 
     def ms(self, scene, label, n):
-        return self.summary(scene, label, n, "ms_per_frame")
+        """Cost per stereo frame: from the timing pass (one run alone on the machine) where there is one,
+        else from the accuracy runs (two at a time, which share memory bandwidth and caches)."""
+        timed = self.timing.get((scene, label, n))
+        return [timed] if timed is not None else self.summary(scene, label, n, "ms_per_frame")
 
     def wrong_runs(self, scene, label, n):
         rs = self.get(scene, label, n)
@@ -429,10 +437,13 @@ def write_report(res, runs, args, elapsed, bench_text, docs_dir, fig_dir_rel):
       "`taskset`), %s build. Scenes are make_scene's synthetic 640x480 stereo bags at 30 fps, 300 frames, "
       "fx = 525 px, baseline 9 cm, an orange ball of radius 3.5 cm about 1.1 m away (see `scenes/`). Particle "
       "filters: %d seeds per row, uniform initialisation over the viewing frustum, colour cue only unless a row "
-      "says 'all cues' (`config/multi_cue.yaml`). For StereoConstraints the particle count is per set (left and "
+      "names other cues: 'colour+stereo' is `config/colour_stereo.yaml`, 'all cues' is `config/multi_cue.yaml` "
+      "(colour, texture, shape and stereo), 'colour+texture+shape' the same without stereo. For StereoConstraints the particle count is per set (left and "
       "right), as in the thesis. OpenCV baselines (CSRT, KCF from opencv_contrib; CamShift on a hue "
       "back-projection) run on both images independently from the same target box and are triangulated; they "
-      "are deterministic, so one run each. Times are per stereo frame on one core." % (
+      "are deterministic, so one run each. Times are per stereo frame on one core; for the two pendulum scenes "
+      "they come from a separate pass that runs each configuration alone (seed 1), elsewhere from the accuracy "
+      "runs, two at a time." % (
           len(runs), cpu, os.cpu_count() or 0, args.build_type, args.seeds))
     w("")
     w("**Definitions.** *Converged*: the first frame from which the 3D error stays below 5 cm for 10 visible "
@@ -450,14 +461,15 @@ def write_report(res, runs, args, elapsed, bench_text, docs_dir, fig_dir_rel):
     # Acceptance: Position3D vs the best baseline.
     w("## Position3D against OpenCV's trackers")
     w("")
-    w("| scene | Position3D 1000: RMS after conv. cm (mean of %d seeds) | mean error cm | ms / frame | best baseline "
-      "(by RMS after conv.) | its RMS cm | its mean error cm | CSRT ms / frame | CSRT / Position3D time |" % args.seeds)
-    w("|---|---|---|---|---|---|---|---|---|")
+    w("Position3D with 1000 particles, colour alone (the thesis's model and the built-in default) and with the "
+      "stereo cue (`config/colour_stereo.yaml`), against the best OpenCV baseline (by RMS after convergence) "
+      "and CSRT's cost, all from this run.")
+    w("")
+    w("| scene | Position3D config | RMS after conv. cm (mean of %d seeds) | mean error cm | ms / frame | best "
+      "baseline | its RMS cm | its mean error cm | CSRT ms / frame | CSRT / Position3D time |" % args.seeds)
+    w("|---|---|---|---|---|---|---|---|---|---|")
     verdicts = []
     for scene in SWEEP_SCENES:
-        p_rms = stats(res.rms(scene, "Position3D", 1000))[0]
-        p_mean = np.mean(res.mean_err_cm(scene, "Position3D", 1000))
-        p_ms = np.median(res.ms(scene, "Position3D", 1000))
         best, best_rms = None, float("inf")
         for b in BASELINES:
             v = res.rms(scene, b, 0)
@@ -465,13 +477,18 @@ def write_report(res, runs, args, elapsed, bench_text, docs_dir, fig_dir_rel):
                 best, best_rms = b, v[0]
         best_mean = res.mean_err_cm(scene, best, 0)[0] if best else float("nan")
         csrt_ms = res.ms(scene, "csrt", 0)
-        ratio = csrt_ms[0] / p_ms if csrt_ms else float("nan")
-        w("| %s | %s | %s | %s | %s | %s | %s | %s | %s |" % (
-            scene.replace("_", " "), fmt(p_rms), fmt(p_mean), fmt(p_ms), best.upper() if best else "none converged",
-            fmt(best_rms), fmt(best_mean), fmt(csrt_ms[0] if csrt_ms else None), fmt(ratio, "%.1fx")))
-        verdicts.append((scene, p_rms, best, best_rms, ratio))
+        for label in ["Position3D", CONFIGS[0][0]]:
+            p_rms = stats(res.rms(scene, label, 1000))[0]
+            p_mean = np.mean(res.mean_err_cm(scene, label, 1000))
+            p_ms = np.median(res.ms(scene, label, 1000))
+            ratio = csrt_ms[0] / p_ms if csrt_ms else float("nan")
+            w("| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |" % (
+                scene.replace("_", " "), "colour" if label == "Position3D" else "colour + stereo", fmt(p_rms),
+                fmt(p_mean), fmt(p_ms), best.upper() if best else "none converged", fmt(best_rms), fmt(best_mean),
+                fmt(csrt_ms[0] if csrt_ms else None), fmt(ratio, "%.1fx")))
+            verdicts.append((scene, label, p_rms, best, best_rms, ratio))
     w("")
-    for scene, p_rms, best, best_rms, ratio in verdicts:
+    for scene, label, p_rms, best, best_rms, ratio in verdicts:
         if best is None:
             acc = "the only one of them that converged"
         elif p_rms <= best_rms:
@@ -479,8 +496,9 @@ def write_report(res, runs, args, elapsed, bench_text, docs_dir, fig_dir_rel):
         else:
             acc = "less accurate than %s by %.2f cm RMS" % (best.upper(), p_rms - best_rms)
         spd = ("%.0fx faster than CSRT" % ratio) if math.isfinite(ratio) else "not compared with CSRT"
-        w("- %s: Position3D is %s, and %s%s." % (scene.replace("_", " "), acc, spd,
-                                                 "" if ratio >= 10 else " (the target is 10x: missed)"))
+        w("- %s, %s: Position3D is %s, and %s%s." % (
+            scene.replace("_", " "), "colour" if label == "Position3D" else "colour + stereo", acc, spd,
+            "" if ratio >= 10 else " (the target is 10x: missed)"))
     w("")
 
     # Table 7.1
@@ -522,6 +540,10 @@ def write_report(res, runs, args, elapsed, bench_text, docs_dir, fig_dir_rel):
                 row = table_row(res, scene, f, n)
                 if row:
                     w(row)
+        for label, _ in CONFIGS:
+            row = table_row(res, scene, label, 1000)
+            if row:
+                w(row)
         for b in BASELINES:
             row = table_row(res, scene, b, 0)
             if row:
@@ -543,7 +565,7 @@ def write_report(res, runs, args, elapsed, bench_text, docs_dir, fig_dir_rel):
         w("### %s" % scene.replace("_", " "))
         w("")
         w(TABLE_HEAD)
-        labels = FILTERS + (["Position3D all cues"] if scene in CUE_SCENES else []) + BASELINES
+        labels = FILTERS + [c[0] for c in CONFIGS] + ([THREE_CUES[0]] if scene in CUE_SCENES else []) + BASELINES
         for label in labels:
             row = table_row(res, scene, label, baseline_n(label))
             if row:
@@ -553,7 +575,7 @@ def write_report(res, runs, args, elapsed, bench_text, docs_dir, fig_dir_rel):
             w("| filter | runs declaring the track lost while hidden | re-acquire frames after reappearing: mean "
               "/ worst |")
             w("|---|---|---|")
-            for label in FILTERS + BASELINES:
+            for label in FILTERS + [c[0] for c in CONFIGS] + BASELINES:
                 n = baseline_n(label)
                 lost = res.summary(scene, label, n, "declared_lost")
                 re = [x for x in res.summary(scene, label, n, "reacquire_frames") if x >= 0]
@@ -627,7 +649,13 @@ def main():
     print("experiments: %d runs, %d at a time" % (len(runs), args.jobs), flush=True)
     os.chdir(args.root)
     execute(runs, args.bin, args.data, out_dir, args.jobs)
-    res = Results(runs, out_dir, args.data)
+    # Timing pass: the pendulum scenes' configurations once more (seed 1), one run at a time, so that the
+    # cost figures are not inflated by a second run sharing the machine.
+    timing = [Run(r.scene, r.label, r.args, r.particles, r.seed, os.path.join("timing", r.csv.replace("/", "_")))
+              for r in runs if r.scene in SWEEP_SCENES and r.seed in (0, 1)]
+    print("experiments: timing pass, %d runs one at a time" % len(timing), flush=True)
+    execute(timing, args.bin, args.data, out_dir, 1)
+    res = Results(runs, out_dir, args.data, timing)
 
     docs_dir = os.path.join(args.root, "docs")
     fig_dir = os.path.join(docs_dir, "experiments")
