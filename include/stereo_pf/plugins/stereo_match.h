@@ -45,7 +45,9 @@ namespace stereo_pf
 ///
 /// Parameters (in the plugin's namespace): sigma (0.1, 0.001..10), window_scale (1.35, 0.2..3),
 /// rows (2, 1..41), column_step (3 px, 1..20), min_contrast (4 grey levels, 0.1..100),
-/// min_radius (2 px, 0.5..100); all are re-read by reconfigure().
+/// min_radius (2 px, 0.5..100), only_while_tracking (true: the engine skips the cue while searching or
+/// lost, where it would pull particles to any textured surface it can triangulate); all are re-read by
+/// reconfigure().
 class StereoMatch : public ObservationModel
 {
 public:
