@@ -1,6 +1,7 @@
 // Circle-contour observation model (thesis eq. 5.8-5.11); see include/stereo_pf/plugins/shape_circle.h.
 #include "stereo_pf/plugins/shape_circle.h"
 #include "stereo_pf/core/histogram.h"
+#include "stereo_pf/core/silhouette.h"
 
 #include <algorithm>
 #include <cmath>
@@ -25,45 +26,6 @@ constexpr int kLinesPerLog = 16;
 constexpr int kLanes = cv::v_uint8x16::nlanes;
 // Lines per vector of the contour-point computation.
 constexpr int kLines4 = cv::v_float32x4::nlanes;
-
-// The image of a sphere whose centre projects to (u, v) with apparent radius r = f R / z (the 3D state
-// models' convention) in a pinhole camera of focal length f and principal point (cx, cy): off the optical
-// axis it is an ellipse, elongated away from the principal point (by 1 / cos(theta), ~6 % at 20 deg) and
-// centred slightly further out. A circle of radius r would fit it best with a larger radius, i.e. a closer
-// depth. Writes the ellipse's centre (cu, cv), radial unit vector (ex, ey) and semi-axes a (radial) >= b;
-// false when the circle is exact enough (on the axis) or the formula breaks down (the sphere reaching
-// 90 deg off the axis).
-bool sphereSilhouette(float u, float v, float r, float f, float cx, float cy, float& cu, float& cv, float& ex,
-                      float& ey, float& a, float& b)
-{
-  const float dx = u - cx, dy = v - cy;
-  const float rho = std::sqrt(dx * dx + dy * dy);
-  if (!(rho > 1e-3f * f))
-    return false;
-  const float t = rho / f;                               // tan(theta), theta: centre's angle off the axis
-  const float cos_t = 1.0f / std::sqrt(1.0f + t * t);
-  const float sin_a = r * cos_t / f;                     // sin(alpha) = R / distance: angular radius
-  if (!(sin_a < 0.9f))
-    return false;
-  const float tan_a = sin_a / std::sqrt(1.0f - sin_a * sin_a);
-  const float den = 1.0f - t * tan_a;
-  if (!(den > 0.05f))
-    return false;
-  // The silhouette cone spans theta - alpha .. theta + alpha radially; its perpendicular half-width is
-  // f sin(alpha) / sqrt(cos^2 theta - sin^2 alpha).
-  const float t_far = (t + tan_a) / den, t_near = (t - tan_a) / (1.0f + t * tan_a);
-  const float perpendicular2 = cos_t * cos_t - sin_a * sin_a;
-  if (!(perpendicular2 > 0.0f))
-    return false;
-  ex = dx / rho;
-  ey = dy / rho;
-  const float centre = 0.5f * f * (t_far + t_near);
-  a = 0.5f * f * (t_far - t_near);
-  b = f * sin_a / std::sqrt(perpendicular2);
-  cu = cx + ex * centre;
-  cv = cy + ey * centre;
-  return true;
-}
 
 }  // namespace
 
@@ -105,26 +67,15 @@ void ShapeCircle::applyTunables(const Tunables& t)
     line.s = static_cast<float>(s);
     // Step one pixel along the dominant axis per sample (a digital line): every sample is a distinct
     // pixel, and the pattern is the same for every hypothesis, so it is tabulated once here.
-    const bool along_x = std::abs(c) >= std::abs(s);
-    const double major = along_x ? std::abs(c) : std::abs(s);
+    const double major = std::max(std::abs(c), std::abs(s));
     line.spacing = static_cast<float>(1.0 / major);
     // U is the uniform density over the line's length: gain = (1 - q0) / (q0 U).
     const double length = (2 * half + 1) * line.spacing;
     line.gain = (1.0 - t.q0) / t.q0 * length;
     for (int j = 0; j < samples_per_line_; ++j)
     {
-      const int step = j - (half + 2);
       int dx, dy;
-      if (along_x)
-      {
-        dx = c > 0 ? step : -step;
-        dy = static_cast<int>(std::lround(step * s / major));
-      }
-      else
-      {
-        dy = s > 0 ? step : -step;
-        dx = static_cast<int>(std::lround(step * c / major));
-      }
+      digitalLineStep(c, s, j - (half + 2), dx, dy);
       const size_t idx = static_cast<size_t>(k) * samples_per_line_ + j;
       dx_[idx] = dx;
       dy_[idx] = dy;
