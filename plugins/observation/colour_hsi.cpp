@@ -22,26 +22,13 @@ constexpr int kMinInsideDenominator = 4;  // 1/4
 void ColourHSI::onInitialize()
 {
   const Parameters& p = params();
-  HsiBinning b;
-  b.hue_bins = p.getInt("hue_bins", 8, 1, 64);
-  b.saturation_bins = p.getInt("saturation_bins", 8, 1, 64);
-  b.intensity_bins = p.getInt("intensity_bins", 4, 1, 64);
-  b.achromatic_saturation = p.getDouble("achromatic_saturation", 0.1, 0.0, 1.0);
-  b.achromatic_intensity = p.getDouble("achromatic_intensity", 0.08, 0.0, 1.0);
-  if (b.bins() > HsiBinning::kMaxBins)
-  {
-    const std::string ns = p.prefix().empty() ? "" : p.prefix() + "/";
-    throw ParameterError("parameters '" + ns + "hue_bins' x '" + ns + "saturation_bins' x '" + ns +
-                         "intensity_bins' = " + std::to_string(b.hue_bins) + " x " + std::to_string(b.saturation_bins) +
-                         " x " + std::to_string(b.intensity_bins) + " = " + std::to_string(b.bins()) +
-                         " bins; at most " + std::to_string(HsiBinning::kMaxBins) + " are allowed");
-  }
+  const HsiBinning b = HsiBinning::fromParameters(p);
   const Tunables t = readTunables();  // validate everything before changing any state
 
   // The table is built once here; evaluate() only reads it (through the cached bin images).
   binner_ = std::make_unique<const HsiBinner>(b);
   binning_ = b;
-  cache_key_ = "hsi_bins/" + b.describe();
+  cache_key_ = "hsi_bins/" + b.describe();  // the bin image's key (HsiBinner::cachedBins)
   target_ = TargetHistogram();  // a target learned with another binning would be meaningless
   applyTunables(t);
 }
@@ -105,13 +92,7 @@ const cv::Mat& ColourHSI::binImage(FeatureCache& cache, View view, int y0, int y
 {
   if (!binner_)
     throw std::logic_error("ColourHSI: used before initialize()");
-  return cache.getRows(view, cache_key_, y0, y1, [this](const cv::Mat& image, cv::Mat& out, int a, int b) {
-    out.create(image.size(), CV_8UC1);
-    if (a >= b)
-      return;
-    cv::Mat rows = out.rowRange(a, b);  // the right size and type: binImage() fills it in place
-    binner_->binImage(image.rowRange(a, b), rows);
-  });
+  return binner_->cachedBins(cache, view, y0, y1);
 }
 
 double ColourHSI::targetProbability(int bin) const
@@ -253,8 +234,7 @@ void ColourHSI::saveTarget(cv::FileStorage& fs) const
   const HsiBinning& b = binning_;
   fs << name() << "{";
   fs << "type" << "stereo_pf/ColourHSI";
-  fs << "hue_bins" << b.hue_bins << "saturation_bins" << b.saturation_bins << "intensity_bins" << b.intensity_bins;
-  fs << "achromatic_saturation" << b.achromatic_saturation << "achromatic_intensity" << b.achromatic_intensity;
+  b.write(fs);
   fs << "histogram" << target_.probabilities();
   fs << "learned_radius" << static_cast<double>(learned_radius_);  // the 2D hypotheses' surround ring
   fs << "}";
@@ -271,19 +251,13 @@ bool ColourHSI::loadTarget(const cv::FileNode& node, std::string& error)
     error = name() + ": no colour target named '" + name() + "' in the file";
     return false;
   }
-  for (const char* key : { "hue_bins", "saturation_bins", "intensity_bins", "achromatic_saturation",
-                           "achromatic_intensity" })
-    if (!m[key].isInt() && !m[key].isReal())
-    {
-      error = name() + ": colour target lacks the number '" + key + "'";
-      return false;
-    }
   HsiBinning stored;
-  stored.hue_bins = static_cast<int>(m["hue_bins"]);
-  stored.saturation_bins = static_cast<int>(m["saturation_bins"]);
-  stored.intensity_bins = static_cast<int>(m["intensity_bins"]);
-  stored.achromatic_saturation = static_cast<double>(m["achromatic_saturation"]);
-  stored.achromatic_intensity = static_cast<double>(m["achromatic_intensity"]);
+  std::string reason;
+  if (!HsiBinning::read(m, stored, reason))
+  {
+    error = name() + ": colour target " + reason;
+    return false;
+  }
   if (!stored.sameAs(binning_))
   {
     error = name() + ": the colour target was learned with HSI binning " + stored.describe() +

@@ -77,6 +77,48 @@ std::string HsiBinning::describe() const
   return buf;
 }
 
+HsiBinning HsiBinning::fromParameters(const Parameters& p)
+{
+  HsiBinning b;
+  b.hue_bins = p.getInt("hue_bins", 8, 1, 64);
+  b.saturation_bins = p.getInt("saturation_bins", 8, 1, 64);
+  b.intensity_bins = p.getInt("intensity_bins", 4, 1, 64);
+  b.achromatic_saturation = p.getDouble("achromatic_saturation", 0.1, 0.0, 1.0);
+  b.achromatic_intensity = p.getDouble("achromatic_intensity", 0.08, 0.0, 1.0);
+  if (b.bins() > kMaxBins)
+  {
+    const std::string ns = p.prefix().empty() ? "" : p.prefix() + "/";
+    throw ParameterError("parameters '" + ns + "hue_bins' x '" + ns + "saturation_bins' x '" + ns +
+                         "intensity_bins' = " + std::to_string(b.hue_bins) + " x " + std::to_string(b.saturation_bins) +
+                         " x " + std::to_string(b.intensity_bins) + " = " + std::to_string(b.bins()) +
+                         " bins; at most " + std::to_string(kMaxBins) + " are allowed");
+  }
+  return b;
+}
+
+void HsiBinning::write(cv::FileStorage& fs) const
+{
+  fs << "hue_bins" << hue_bins << "saturation_bins" << saturation_bins << "intensity_bins" << intensity_bins;
+  fs << "achromatic_saturation" << achromatic_saturation << "achromatic_intensity" << achromatic_intensity;
+}
+
+bool HsiBinning::read(const cv::FileNode& m, HsiBinning& b, std::string& error)
+{
+  for (const char* key : { "hue_bins", "saturation_bins", "intensity_bins", "achromatic_saturation",
+                           "achromatic_intensity" })
+    if (!m[key].isInt() && !m[key].isReal())
+    {
+      error = std::string("lacks the number '") + key + "'";
+      return false;
+    }
+  b.hue_bins = static_cast<int>(m["hue_bins"]);
+  b.saturation_bins = static_cast<int>(m["saturation_bins"]);
+  b.intensity_bins = static_cast<int>(m["intensity_bins"]);
+  b.achromatic_saturation = static_cast<double>(m["achromatic_saturation"]);
+  b.achromatic_intensity = static_cast<double>(m["achromatic_intensity"]);
+  return true;
+}
+
 bool HsiBinning::sameAs(const HsiBinning& other) const
 {
   return hue_bins == other.hue_bins && saturation_bins == other.saturation_bins &&
@@ -85,7 +127,8 @@ bool HsiBinning::sameAs(const HsiBinning& other) const
          std::abs(achromatic_intensity - other.achromatic_intensity) <= 1e-9;
 }
 
-HsiBinner::HsiBinner(const HsiBinning& binning) : binning_(binning), lut_(1u << 18)
+HsiBinner::HsiBinner(const HsiBinning& binning)
+  : binning_(binning), cache_key_("hsi_bins/" + binning.describe()), lut_(1u << 18)
 {
   binning_.validate();
   // Each 6-bit cell is represented by its centre value, so the table does not bias towards darker colours.
@@ -98,6 +141,17 @@ HsiBinner::HsiBinner(const HsiBinning& binning) : binning_(binning), lut_(1u << 
   // Grey images have only 256 colours: bin them exactly instead of through the 6-bit table.
   for (int v = 0; v < 256; ++v)
     gray_lut_[v] = static_cast<uint8_t>(binning_.bin(rgbToHsi(v, v, v)));
+}
+
+const cv::Mat& HsiBinner::cachedBins(FeatureCache& cache, View view, int y0, int y1) const
+{
+  return cache.getRows(view, cache_key_, y0, y1, [this](const cv::Mat& image, cv::Mat& out, int a, int b) {
+    out.create(image.size(), CV_8UC1);
+    if (a >= b)
+      return;
+    cv::Mat rows = out.rowRange(a, b);  // the right size and type: binImage() fills it in place
+    binImage(image.rowRange(a, b), rows);
+  });
 }
 
 void HsiBinner::binImage(const cv::Mat& image, cv::Mat& bins) const

@@ -8,6 +8,9 @@
 
 #include <opencv2/core.hpp>
 
+#include "stereo_pf/core/feature_cache.h"
+#include "stereo_pf/core/parameters.h"
+
 namespace stereo_pf
 {
 /// One HSI triple: hue in degrees [0, 360), saturation and intensity in [0, 1].
@@ -54,6 +57,15 @@ struct HsiBinning
   std::string describe() const;
   /// True when both binnings produce the same bin for every colour.
   bool sameAs(const HsiBinning& other) const;
+
+  /// Read hue_bins (8, 1..64), saturation_bins (8, 1..64), intensity_bins (4, 1..64), achromatic_saturation
+  /// (0.1, 0..1) and achromatic_intensity (0.08, 0..1) from `params`; throws ParameterError naming the
+  /// parameter, or all three bin counts when their product exceeds kMaxBins.
+  static HsiBinning fromParameters(const Parameters& params);
+  /// Write the five settings into the open map of `fs` (target files).
+  void write(cv::FileStorage& fs) const;
+  /// Read them back from a map written by write(); false with `error` naming the missing key.
+  static bool read(const cv::FileNode& node, HsiBinning& binning, std::string& error);
 };
 
 /// Maps BGR pixels to HSI bin indices through a lookup table on 6-bit-per-channel colour
@@ -74,8 +86,14 @@ public:
   /// other types.
   void binImage(const cv::Mat& image, cv::Mat& bins) const;
 
+  /// The bin-index image of `view` of the cache's frame, through the cache under the key
+  /// "hsi_bins/<binning>" (so every model with the same binning shares it); only rows [y0, y1) are
+  /// guaranteed (FeatureCache::getRows()).
+  const cv::Mat& cachedBins(FeatureCache& cache, View view, int y0, int y1) const;
+
 private:
   HsiBinning binning_;
+  std::string cache_key_;
   std::vector<uint8_t> lut_;
   std::array<uint8_t, 256> gray_lut_{};
 };
