@@ -95,6 +95,50 @@ TEST(Resampling, ResampleCopiesStatesAndResetsWeights)
   }
 }
 
+// The refining stage's kernel jitter: copies of one particle spread with the given covariance.
+TEST(Jitter, SpreadsCopiesWithTheScaledCovariance)
+{
+  Rng rng(5);
+  ParticleSet p;
+  const int n = 20000;
+  p.resize(n, 2);
+  p.states.col(0).setConstant(1.0);
+  p.states.col(1).setConstant(-2.0);
+  Eigen::MatrixXd cov(2, 2);
+  cov << 4.0, 1.2, 1.2, 1.0;
+  jitter(p, cov, 0.5, rng);
+  const Eigen::VectorXd w = Eigen::VectorXd::Constant(n, 1.0 / n);
+  const Eigen::VectorXd m = weightedMean(p.states, w);
+  const Eigen::MatrixXd c = weightedCovariance(p.states, w, m);
+  EXPECT_NEAR(m[0], 1.0, 0.03);
+  EXPECT_NEAR(m[1], -2.0, 0.015);
+  // 0.25 * cov, within the sampling error of 20000 draws.
+  EXPECT_NEAR(c(0, 0), 1.0, 0.04);
+  EXPECT_NEAR(c(1, 1), 0.25, 0.01);
+  EXPECT_NEAR(c(0, 1), 0.3, 0.015);
+  EXPECT_DOUBLE_EQ(p.weights[0], 1.0 / n);  // weights untouched
+}
+
+TEST(Jitter, DegenerateCovarianceUsesItsDiagonalAndZeroScaleNothing)
+{
+  Rng rng(6);
+  ParticleSet p;
+  p.resize(5000, 3);
+  p.states.setZero();
+  Eigen::MatrixXd cov = Eigen::MatrixXd::Zero(3, 3);
+  cov(0, 0) = 1.0;  // the other two coordinates: every particle agrees (not positive definite)
+  cov(2, 2) = -1e-12;
+  const Eigen::MatrixXd before = p.states;
+  jitter(p, cov, 0.0, rng);
+  EXPECT_EQ(p.states, before);
+  jitter(p, cov, 1.0, rng);
+  EXPECT_TRUE(p.states.allFinite());
+  EXPECT_NEAR(std::sqrt(p.states.col(0).squaredNorm() / p.size()), 1.0, 0.05);
+  EXPECT_EQ(p.states.col(1).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ(p.states.col(2).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_THROW(jitter(p, Eigen::MatrixXd::Identity(2, 2), 1.0, rng), std::invalid_argument);
+}
+
 TEST(Estimators, MeanAndCovariance)
 {
   Eigen::MatrixXd pts(4, 2);

@@ -238,7 +238,7 @@ int main(int argc, char** argv)
 }
 
 // With only_while_tracking (the default) the engine consults the stereo cue only in frames that follow a
-// frame in the tracking state; without it, in every frame.
+// frame in the tracking state; without it (and not refining), in every frame.
 namespace
 {
 class CountingStereoMatch : public StereoMatch
@@ -266,6 +266,7 @@ void runEngine(bool only_while_tracking, std::vector<bool>& tracking_before, std
   auto stereo = std::make_shared<CountingStereoMatch>();
   Parameters p;
   p.set("only_while_tracking", only_while_tracking);
+  p.set("refine", false);  // an ordinary cue here (a refining cue is consulted only while tracking anyway)
   stereo->initialize("stereo", p);
   EngineConfig config;
   config.particles = 300;

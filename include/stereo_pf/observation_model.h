@@ -21,7 +21,7 @@ public:
   ObservationModel& operator=(const ObservationModel&) = delete;
 
   /// Store the plugin's name and its parameter namespace (`params` is already scoped to `~/<name>`),
-  /// read the common parameters `enabled` and `weight`, then call onInitialize().
+  /// read the common parameters `enabled`, `weight` and `refine`, then call onInitialize().
   /// Throws ParameterError on invalid parameters.
   void initialize(const std::string& name, const Parameters& params);
 
@@ -67,7 +67,7 @@ public:
   virtual bool loadTarget(const cv::FileNode& node, std::string& error) = 0;
 
   /// Re-read tunables after the parameters changed (dynamic reconfigure). Called between frames.
-  /// The default re-reads `enabled` and `weight` only.
+  /// The default re-reads `enabled`, `weight` and `refine` only.
   virtual void reconfigure();
 
   /// Instance name (its parameter namespace).
@@ -76,6 +76,12 @@ public:
   bool enabled() const { return enabled_; }
   /// Exponent on this model's likelihood (multiplies its log-likelihood), parameter `weight`.
   double weight() const { return weight_; }
+  /// True for a refining cue (parameter `refine`, default refinesByDefault()): one whose likelihood is much
+  /// sharper than a particle cloud spread by the dynamics can sample (a sub-pixel outline, a disparity). While
+  /// tracking, the engine applies refining cues after the others, on the set resampled and jittered over the
+  /// region the others allow (EngineConfig::refine_jitter), and leaves them out of the evidence; while
+  /// searching or lost it skips them. Without any other enabled cue a refining cue is an ordinary one.
+  bool refine() const { return refine_; }
 
 protected:
   ObservationModel() = default;
@@ -83,6 +89,8 @@ protected:
   virtual void onInitialize() = 0;
   /// The plugin's parameter namespace.
   const Parameters& params() const { return params_; }
+  /// Default of the `refine` parameter (false: an ordinary cue).
+  virtual bool refinesByDefault() const { return false; }
 
 private:
   void readCommon();
@@ -90,6 +98,7 @@ private:
   Parameters params_;
   bool enabled_ = true;
   double weight_ = 1.0;
+  bool refine_ = false;
 };
 
 }  // namespace stereo_pf

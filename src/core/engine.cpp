@@ -52,6 +52,8 @@ EngineConfig EngineConfig::fromParameters(const Parameters& p)
   c.tracking_respawn_fraction = p.getDouble("tracking_respawn_fraction", c.tracking_respawn_fraction, 0.0, 1.0);
   c.proposal_fraction = p.getDouble("proposal_fraction", c.proposal_fraction, 0.0, 1.0);
   c.proposal_min_depth = p.getDouble("proposal_min_depth", c.proposal_min_depth, 1e-3, 1e6);
+  c.refine_jitter = p.getDouble("refine_jitter", c.refine_jitter, 0.0, 10.0);
+  c.refine_search_weight = p.getDouble("refine_search_weight", c.refine_search_weight, 0.0, 1.0);
   return c;
 }
 
@@ -322,6 +324,48 @@ void FilterEngine::updateTrackState(double evidence)
     state_ = TrackState::Lost;
 }
 
+template <class Take>
+int FilterEngine::observe(const StereoGeometry& geometry, int s, Take take)
+{
+  ParticleSet& p = sets_[s];
+  const ImageHypotheses* left = nullptr;
+  const ImageHypotheses* right = nullptr;
+  for (ImageHypotheses& hyp : hypotheses_[s])
+  {
+    state_model_->project(geometry, s, p, hyp);
+    (hyp.view == View::Left ? left : right) = &hyp;
+  }
+  int cues = 0;
+  for (auto& model : observation_models_)
+  {
+    const Use use = take(*model);
+    if (!(use.weight > 0.0))
+      continue;
+    const double weight = use.weight * model->weight();
+    if (model->comparesViews())
+    {
+      // Scores the agreement of a particle's two images: only for sets seen in both, and not evidence.
+      if (left && right)
+      {
+        model->evaluatePair(cache_, *left, *right, scratch_ll_, scratch_sim_);
+        p.log_weights += weight * scratch_ll_;
+      }
+      continue;
+    }
+    for (const ImageHypotheses& hyp : hypotheses_[s])
+    {
+      model->evaluate(cache_, hyp, scratch_ll_, scratch_sim_);
+      p.log_weights += weight * scratch_ll_;
+      if (use.evidence)
+      {
+        sum_sim_ += scratch_sim_;
+        ++cues;
+      }
+    }
+  }
+  return cues;
+}
+
 FrameResult FilterEngine::step(const StereoFrame& frame)
 {
   const std::string invalid = frame.validate();
@@ -357,6 +401,27 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
   }
 
   // Observe: every enabled model scores every hypothesis of every view of every set, in batches.
+  // Refining models are sharper than the predicted cloud can sample (a 1000-particle cloud spread by the
+  // dynamics has few particles within a sub-pixel likelihood's reach, so the weights would collapse onto the
+  // luckiest one). While tracking, and when other cues run too, they come second (progressive correction):
+  // the other cues weigh the set, it is resampled and jittered over the region they allow, and only then do
+  // the refining cues weigh it. They are not part of the evidence: the other cues say what is seen.
+  // While searching or lost there is no region to refine: refining cues then weigh in with the others, their
+  // weight tempered by refine_search_weight (0: skipped), so an outline still helps tell the object from
+  // clutter of its colour. A refining cue alone could never find the object: without another enabled cue it
+  // is an ordinary one.
+  const bool tracking = state_ == TrackState::Tracking;
+  const bool others = std::any_of(observation_models_.begin(), observation_models_.end(),
+                                  [](const std::shared_ptr<ObservationModel>& m) { return m->enabled() && !m->refine(); });
+  auto refining = [others](const ObservationModel& m) { return others && m.refine(); };
+  auto active = [&](const ObservationModel& m) {
+    return m.enabled() && (tracking || !m.onlyWhileTracking()) &&
+           (tracking || !refining(m) || config_.refine_search_weight > 0.0);
+  };
+  const bool two_stage = tracking && std::any_of(observation_models_.begin(), observation_models_.end(),
+                                                 [&](const std::shared_ptr<ObservationModel>& m) {
+                                                   return active(*m) && refining(*m);
+                                                 });
   double evidence = std::numeric_limits<double>::infinity();
   result.log_marginal = 0.0;
   for (int s = 0; s < static_cast<int>(sets_.size()); ++s)
@@ -368,40 +433,26 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     sum_sim_.setZero(n);
     scratch_ll_.resize(n);
     scratch_sim_.resize(n);
-    int cues = 0;
-    const ImageHypotheses* left = nullptr;
-    const ImageHypotheses* right = nullptr;
-    for (ImageHypotheses& hyp : hypotheses_[s])
-    {
-      state_model_->project(geometry, s, p, hyp);
-      (hyp.view == View::Left ? left : right) = &hyp;
-    }
-    for (auto& model : observation_models_)
-    {
-      if (!model->enabled() || (model->onlyWhileTracking() && state_ != TrackState::Tracking))
-        continue;
-      if (model->comparesViews())
-      {
-        // Scores the agreement of a particle's two images: only for sets seen in both, and not evidence.
-        if (left && right)
-        {
-          model->evaluatePair(cache_, *left, *right, scratch_ll_, scratch_sim_);
-          p.log_weights += model->weight() * scratch_ll_;
-        }
-        continue;
-      }
-      for (const ImageHypotheses& hyp : hypotheses_[s])
-      {
-        model->evaluate(cache_, hyp, scratch_ll_, scratch_sim_);
-        p.log_weights += model->weight() * scratch_ll_;
-        sum_sim_ += scratch_sim_;
-        ++cues;
-      }
-    }
+    const int cues = observe(geometry, s, [&](const ObservationModel& m) {
+      if (!active(m) || (two_stage && refining(m)))
+        return Use{};
+      return refining(m) ? Use{ config_.refine_search_weight, false } : Use{ 1.0, true };
+    });
     // Evidence that the object is seen: the best particle's mean similarity over cues and views; for
     // several sets (left and right images) the object must be seen in all of them.
     const double best = cues > 0 ? sum_sim_.maxCoeff() / cues : 0.0;
     evidence = std::min(evidence, best);
+    if (two_stage)
+    {
+      result.log_marginal += p.normalise();
+      const Eigen::MatrixXd cov = weightedCovariance(p.states, p.weights, weightedMean(p.states, p.weights));
+      systematicResample(p, rng_, resample_indices_, resample_scratch_);
+      jitter(p, cov, config_.refine_jitter, rng_);
+      p.log_weights.setZero();
+      observe(geometry, s, [&](const ObservationModel& m) {
+        return active(m) && refining(m) ? Use{ 1.0, false } : Use{};
+      });
+    }
     result.log_marginal += p.normalise();
   }
   result.evidence = std::isfinite(evidence) ? evidence : 0.0;

@@ -19,6 +19,7 @@ void ObservationModel::readCommon()
 {
   enabled_ = params_.getBool("enabled", true);
   weight_ = params_.getDouble("weight", 1.0, 0.0, 100.0);
+  refine_ = params_.getBool("refine", refinesByDefault());
 }
 
 void ObservationModel::reconfigure()

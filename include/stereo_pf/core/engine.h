@@ -48,6 +48,14 @@ struct EngineConfig
   /// where the target's appearance is, a right pixel along the same row), the rest from the prior.
   double proposal_fraction = 0.5;
   double proposal_min_depth = 0.3;    ///< nearest depth (m) a proposal may have: bounds the disparity searched
+  /// Progressive correction for refining cues (ObservationModel::refine()): after the other cues, each set is
+  /// resampled and every particle jittered by N(0, refine_jitter^2 C), C the set's weighted covariance, before
+  /// the refining cues weigh it. 0: no jitter (the copies of a particle then stay identical).
+  double refine_jitter = 1.0;
+  /// While searching or lost, refining cues are applied together with the others, their weight multiplied by
+  /// this (0: skipped then, the default: an outline of the target's colour is also found on clutter of that
+  /// colour, and the search did no better with it). They are never part of the evidence.
+  double refine_search_weight = 0.0;
 
   /// Read from `params` (missing keys keep their defaults); throws ParameterError.
   static EngineConfig fromParameters(const Parameters& params);
@@ -114,6 +122,17 @@ private:
   void respawn(const StereoGeometry& geometry, int set, int count);
   void prepareProposals(const StereoGeometry& geometry, int count);
   void updateTrackState(double evidence);
+  /// How observe() uses one model: its weight is multiplied by `weight` (0: not evaluated), and its
+  /// similarity counts as evidence when `evidence`.
+  struct Use
+  {
+    double weight = 0.0;
+    bool evidence = false;
+  };
+  /// Project set `s` and add to its log-weights the log-likelihoods of the models as `take(model)` (a Use)
+  /// says; returns the number of per-view cue evaluations added to sum_sim_ (comparesViews models: none).
+  template <class Take>
+  int observe(const StereoGeometry& geometry, int s, Take take);
 
   std::shared_ptr<StateModel> state_model_;
   std::vector<std::shared_ptr<ObservationModel>> observation_models_;

@@ -18,4 +18,11 @@ void systematicResampleIndices(const Eigen::VectorXd& weights, Rng& rng, std::ve
 /// `scratch` is reused between calls to avoid allocation.
 void systematicResample(ParticleSet& set, Rng& rng, std::vector<int>& indices, Eigen::MatrixXd& scratch);
 
+/// Kernel jitter after resampling (the regularised particle filter's "roughening"): add to every particle a
+/// draw from N(0, scale^2 cov), `cov` being the D x D weighted covariance the set had before it was
+/// resampled, so the copies of one particle spread over the region the weights said the state is in. When
+/// `cov` is not positive definite (e.g. a coordinate every particle agrees on) its diagonal is used, negative
+/// entries as 0. scale <= 0 leaves the set unchanged. Throws std::invalid_argument when `cov` is not D x D.
+void jitter(ParticleSet& set, const Eigen::MatrixXd& cov, double scale, Rng& rng);
+
 }  // namespace stereo_pf

@@ -79,6 +79,10 @@ public:
 
 protected:
   void onInitialize() override;
+  /// True: a refining cue (parameter `refine`), applied after the target cues on the set they resampled.
+  /// Applied together with them, it let a textured object of the target's colour win the particles over
+  /// (scenes/colour_distractor.yaml); after them it only sharpens the disparity where they put the target.
+  bool refinesByDefault() const override { return true; }
 
 private:
   struct Tunables
