@@ -23,6 +23,7 @@
 #include "stereo_pf/core/resampling.h"
 #include "stereo_pf/core/scene.h"
 #include "stereo_pf/core/stereo_coupling.h"
+#include "stereo_pf/plugins/colour_contour.h"
 #include "stereo_pf/plugins/colour_hsi.h"
 #include "stereo_pf/plugins/position_3d.h"
 #include "stereo_pf/plugins/shape_circle.h"
@@ -120,6 +121,10 @@ std::shared_ptr<Model> makeModel(const std::string& name, const Parameters& para
 std::shared_ptr<ObservationModel> colourCue()
 {
   return makeModel<ColourHSI>("colour");
+}
+std::shared_ptr<ObservationModel> contourCue()
+{
+  return makeModel<ColourContour>("colour_contour");
 }
 std::shared_ptr<ObservationModel> textureCue()
 {
@@ -362,6 +367,8 @@ void BM_Evaluate(benchmark::State& state, std::shared_ptr<ObservationModel> (*ma
 }
 // Colour histogram with surround ring, on the plain-wall scene (its cost does not depend on the image).
 BENCHMARK_CAPTURE(BM_Evaluate, ColourHSI, colourCue, kUncluttered)->Apply(particleCounts);
+// Sub-pixel colour outline (its P map made once per frame, like the bin image), same scene.
+BENCHMARK_CAPTURE(BM_Evaluate, ColourContour, contourCue, kUncluttered)->Apply(particleCounts);
 // Edge-intensity histogram, on the scene where texture carries information.
 BENCHMARK_CAPTURE(BM_Evaluate, TextureEdge, textureCue, kCheckered)->Apply(particleCounts);
 // Radial measurement lines across the perspective silhouette, same scene.
@@ -473,6 +480,23 @@ BENCHMARK_CAPTURE(BM_Estimator, mean, Estimator::Mean)->Apply(particleCounts);
 BENCHMARK_CAPTURE(BM_Estimator, sum_inverse_distances, Estimator::SumInverseDistances)->Apply(particleCounts);
 BENCHMARK_CAPTURE(BM_Estimator, density, Estimator::Density)->Apply(particleCounts);
 
+// The refining stage's kernel jitter: N(0, C) added to every particle (Cholesky of the 3x3 C, 3 N normals).
+void BM_Jitter(benchmark::State& state)
+{
+  const int n = static_cast<int>(state.range(0));
+  Rng rng(kSeed);
+  ParticleSet set = cloud3D(scene(kUncluttered).target(kStageFrame), n, 3, rng);
+  const Eigen::MatrixXd covariance = weightedCovariance(set.states, set.weights, weightedMean(set.states, set.weights));
+  for (auto _ : state)
+  {
+    jitter(set, covariance, 1e-3, rng);  // small, so the cloud barely drifts over the iterations
+    benchmark::DoNotOptimize(set.states.data());
+    benchmark::ClobberMemory();
+  }
+  setItems(state, n, n);
+}
+BENCHMARK(BM_Jitter)->Apply(particleCounts);
+
 // The weighted 3x3 covariance around the weighted mean (the mean computed once, outside the loop).
 void BM_WeightedCovariance(benchmark::State& state)
 {
@@ -500,10 +524,11 @@ BENCHMARK(BM_WeightedCovariance)->Apply(particleCounts);
 // The configurations measured.
 enum class StepConfig
 {
-  Position3DColour,   // Position3D + ColourHSI on pendulum_uncluttered (the default tracker)
-  Position3DAllCues,  // Position3D + ColourHSI, TextureEdge, ShapeCircle on checkered_cluttered
-  SCColour,           // StereoConstraints + ColourHSI on pendulum_uncluttered
-  Velocity3DColour    // Velocity3D + ColourHSI on pendulum_uncluttered
+  Position3DColour,   // Position3D + ColourHSI + ColourContour on pendulum_uncluttered (the default tracker)
+  Position3DHistogram,  // Position3D + ColourHSI alone (the thesis's colour model) on pendulum_uncluttered
+  Position3DAllCues,  // Position3D + ColourHSI, ColourContour, TextureEdge, ShapeCircle on checkered_cluttered
+  SCColour,           // StereoConstraints + ColourHSI + ColourContour on pendulum_uncluttered
+  Velocity3DColour    // Velocity3D + ColourHSI + ColourContour on pendulum_uncluttered
 };
 
 void BM_Step(benchmark::State& state, StepConfig config)
@@ -518,6 +543,8 @@ void BM_Step(benchmark::State& state, StepConfig config)
   else
     model = makeModel<Position3D>("state_model");
   std::vector<std::shared_ptr<ObservationModel>> cues = { colourCue() };
+  if (config != StepConfig::Position3DHistogram)
+    cues.push_back(contourCue());
   if (config == StepConfig::Position3DAllCues)
   {
     cues.push_back(textureCue());
@@ -554,6 +581,7 @@ void BM_Step(benchmark::State& state, StepConfig config)
 }
 // Registered per scene (see scene()): the three colour-only configurations first.
 BENCHMARK_CAPTURE(BM_Step, Position3D_colour, StepConfig::Position3DColour)->Apply(particleCounts);
+BENCHMARK_CAPTURE(BM_Step, Position3D_histogram, StepConfig::Position3DHistogram)->Apply(particleCounts);
 BENCHMARK_CAPTURE(BM_Step, StereoConstraints_colour, StepConfig::SCColour)->Apply(particleCounts);
 BENCHMARK_CAPTURE(BM_Step, Velocity3D_colour, StepConfig::Velocity3DColour)->Apply(particleCounts);
 BENCHMARK_CAPTURE(BM_Step, Position3D_all_cues, StepConfig::Position3DAllCues)->Apply(particleCounts);

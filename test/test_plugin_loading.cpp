@@ -38,6 +38,7 @@ TEST(PluginLoading, EveryDeclaredObservationModelLoads)
   Tracker tracker{ Parameters() };
   const auto declared = tracker.declaredObservationModels();
   EXPECT_TRUE(contains(declared, "stereo_pf/ColourHSI"));
+  EXPECT_TRUE(contains(declared, "stereo_pf/ColourContour"));
   for (const std::string& type : declared)
   {
     auto m = tracker.createObservationModel(type, "cue", Parameters());
@@ -98,6 +99,29 @@ TEST(PluginLoading, ConfigurationBuildsTheListedModelsWithTheirParameters)
   EXPECT_TRUE(models[0]->enabled());
   EXPECT_FALSE(models[1]->enabled());
   EXPECT_DOUBLE_EQ(models[1]->weight(), 0.5);
+}
+
+// Without a list: the colour histogram and its outline (a refining cue), each under its own namespace; the
+// `refine` switch is a common parameter of every cue.
+TEST(PluginLoading, DefaultCuesAreTheColourHistogramAndItsOutline)
+{
+  Parameters p;
+  loadYamlString("colour_contour: {sigma: 0.08}\nstereo_cue: {refine: false}\n", p);
+  Tracker tracker(p);
+  EXPECT_EQ(tracker.pluginTypes(), (std::vector<std::string>{ "stereo_pf/Position3D", "stereo_pf/ColourHSI",
+                                                               "stereo_pf/ColourContour" }));
+  const auto& models = tracker.engine().observationModels();
+  ASSERT_EQ(models.size(), 2u);
+  EXPECT_EQ(models[0]->name(), "colour");
+  EXPECT_FALSE(models[0]->refine());
+  EXPECT_EQ(models[1]->name(), "colour_contour");
+  EXPECT_TRUE(models[1]->refine());
+  auto stereo = tracker.createObservationModel("stereo_pf/StereoMatch", "stereo_cue", p.sub("stereo_cue"));
+  EXPECT_FALSE(stereo->refine());
+  EXPECT_TRUE(tracker.createObservationModel("stereo_pf/StereoMatch", "s", Parameters())->refine());
+  Parameters bad;
+  loadYamlString("colour_contour: {refine: maybe}", bad);
+  EXPECT_THROW(Tracker{ bad }, ParameterError);
 }
 
 TEST(PluginLoading, BadPluginParameterNamesIt)

@@ -1,10 +1,12 @@
 // The 3D state models and the engine on rendered stereo frames (no ROS, no bag).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "stereo_pf/core/engine.h"
 #include "stereo_pf/core/scene.h"
+#include "stereo_pf/plugins/colour_contour.h"
 #include "stereo_pf/plugins/colour_hsi.h"
 #include "stereo_pf/plugins/position_3d.h"
 #include "stereo_pf/plugins/stereo_constraints.h"
@@ -281,6 +283,165 @@ TEST(Engine, DeclaresLostWhileOccludedAndReacquires)
       reacquired = k - hidden_end;
   EXPECT_GE(reacquired, 0);
   EXPECT_LE(reacquired, 15);
+}
+
+// The refining stage (progressive correction): a refining cue is consulted only while tracking, after the
+// others, on a set that was resampled and jittered (so it sees N distinct hypotheses, not copies), and its
+// similarity is not evidence. A refining cue alone is an ordinary cue.
+namespace
+{
+// Records, per call, the frame, the view and how many distinct hypothesis columns it was given.
+class RecordingContour : public ColourContour
+{
+public:
+  struct Call
+  {
+    int frame;
+    View view;
+    int distinct;
+  };
+  std::vector<Call> calls;
+  int frame = 0;
+  void evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
+                Eigen::Ref<Eigen::VectorXd> similarity) override
+  {
+    std::vector<float> u = hyp.u;
+    std::sort(u.begin(), u.end());
+    calls.push_back({ frame, hyp.view, static_cast<int>(std::unique(u.begin(), u.end()) - u.begin()) });
+    ColourContour::evaluate(cache, hyp, log_likelihood, similarity);
+  }
+};
+
+struct RefineRun
+{
+  std::vector<TrackState> states;
+  std::vector<double> evidence;
+  std::vector<double> errors;
+};
+
+RefineRun runWithContour(std::shared_ptr<RecordingContour> contour, bool with_colour, int frames,
+                         const EngineConfig& config = EngineConfig())
+{
+  SceneRenderer renderer(loadScene(std::string(SCENES_DIR) + "/pendulum_uncluttered.yaml"));
+  std::vector<std::shared_ptr<ObservationModel>> cues;
+  if (with_colour)
+  {
+    auto colour = std::make_shared<ColourHSI>();
+    colour->initialize("colour", Parameters());
+    cues.push_back(colour);
+  }
+  cues.push_back(contour);
+  FilterEngine engine(make<Position3D>(), cues, config);
+  RefineRun run;
+  StereoFrame f;
+  f.geometry = renderer.geometry();
+  cv::Mat left, right;
+  for (int k = 0; k < frames; ++k)
+  {
+    renderer.render(k, left, right);
+    f.left = left;
+    f.right = right;
+    f.stamp = renderer.stamp(k);
+    if (k == 0)
+    {
+      std::string error;
+      EXPECT_TRUE(engine.learnTarget(f, renderer.targetRoi(0), error)) << error;
+    }
+    contour->frame = k;
+    const FrameResult r = engine.step(f);
+    run.states.push_back(r.state);
+    run.evidence.push_back(r.evidence);
+    run.errors.push_back((r.estimate.position - renderer.targetPosition(k)).norm());
+  }
+  return run;
+}
+}  // namespace
+
+TEST(Engine, RefiningCueComesSecondOnJitteredParticlesWhileTracking)
+{
+  auto contour = std::make_shared<RecordingContour>();
+  contour->initialize("colour_contour", Parameters());
+  ASSERT_TRUE(contour->refine());
+  EngineConfig config;
+  config.particles = 1000;
+  const RefineRun run = runWithContour(contour, true, 40, config);
+  int tracked = 0;
+  for (int k = 0; k < 40; ++k)
+  {
+    const bool tracking_before = k > 0 && run.states[k - 1] == TrackState::Tracking;
+    int calls = 0;
+    for (const auto& c : contour->calls)
+      if (c.frame == k)
+      {
+        ++calls;
+        // Resampled and jittered: (almost) every particle is its own hypothesis. Without the jitter the
+        // resampled copies of the few heavy particles would repeat.
+        EXPECT_GT(c.distinct, 980) << "frame " << k;
+      }
+    EXPECT_EQ(calls, tracking_before ? 2 : 0) << "frame " << k;  // both views of the one 3D set
+    tracked += tracking_before ? 1 : 0;
+  }
+  EXPECT_GT(tracked, 30);
+  std::vector<double> tail(run.errors.begin() + 10, run.errors.end());
+  std::nth_element(tail.begin(), tail.begin() + tail.size() / 2, tail.end());
+  EXPECT_LT(tail[tail.size() / 2], 0.01);  // median error: the outline pins the ball to millimetres
+
+  // The evidence is the colour histogram's alone: the same with the contour switched off, in the frames
+  // before any refinement (the runs are identical up to the first tracking frame).
+  auto off = std::make_shared<RecordingContour>();
+  Parameters p;
+  p.set("enabled", false);
+  off->initialize("colour_contour", p);
+  const RefineRun plain = runWithContour(off, true, 40, config);
+  EXPECT_TRUE(off->calls.empty());
+  ASSERT_EQ(plain.states[0], run.states[0]);
+  EXPECT_DOUBLE_EQ(plain.evidence[0], run.evidence[0]);
+}
+
+TEST(Engine, WithoutJitterTheRefiningCueSeesCopies)
+{
+  auto contour = std::make_shared<RecordingContour>();
+  contour->initialize("colour_contour", Parameters());
+  EngineConfig config;
+  config.particles = 500;
+  config.refine_jitter = 0.0;
+  runWithContour(contour, true, 20, config);
+  ASSERT_FALSE(contour->calls.empty());
+  for (const auto& c : contour->calls)
+    EXPECT_LT(c.distinct, 400) << "frame " << c.frame;
+}
+
+TEST(Engine, RefiningCueAloneIsAnOrdinaryCue)
+{
+  auto contour = std::make_shared<RecordingContour>();
+  contour->initialize("colour_contour", Parameters());
+  EngineConfig config;
+  config.particles = 500;
+  const RefineRun run = runWithContour(contour, false, 3, config);
+  // Every frame, searching included, and its similarity is the evidence.
+  for (int k = 0; k < 3; ++k)
+  {
+    int calls = 0;
+    for (const auto& c : contour->calls)
+      calls += c.frame == k ? 1 : 0;
+    EXPECT_EQ(calls, 2) << "frame " << k;
+  }
+  EXPECT_GT(run.evidence[0], 0.0);
+}
+
+TEST(Engine, RefiningCueWhileSearchingWithTheSearchWeight)
+{
+  auto contour = std::make_shared<RecordingContour>();
+  contour->initialize("colour_contour", Parameters());
+  EngineConfig config;
+  config.particles = 500;
+  config.refine_search_weight = 0.5;
+  const RefineRun run = runWithContour(contour, true, 2, config);
+  ASSERT_EQ(run.states[0], TrackState::Searching);
+  int first = 0;
+  for (const auto& c : contour->calls)
+    first += c.frame == 0 ? 1 : 0;
+  EXPECT_EQ(first, 2);  // applied in the search frame too, with the colour cue
 }
 
 TEST(Engine, RejectsBadFramesAndMissingTarget)

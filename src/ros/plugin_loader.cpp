@@ -47,8 +47,12 @@ Tracker::Tracker(const Parameters& params)
   {
     if (!list.keys().empty())
       throw PluginError("observation_models must be a list of {name, type} entries");
-    observations.push_back(createObservationModel("stereo_pf/ColourHSI", "colour", params.sub("colour")));
-    types_.push_back("stereo_pf/ColourHSI");
+    // The default: the colour histogram finds the object, its colour outline pins it to a fraction of a pixel.
+    for (const auto& [type, name] : kDefaultObservationModels)
+    {
+      observations.push_back(createObservationModel(type, name, params.sub(name)));
+      types_.push_back(type);
+    }
   }
   for (int i = 0; list.has(std::to_string(i) + "/type"); ++i)
   {

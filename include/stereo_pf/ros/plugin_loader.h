@@ -4,6 +4,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <pluginlib/class_loader.hpp>
@@ -20,6 +21,12 @@ public:
   using std::runtime_error::runtime_error;
 };
 
+/// The observation models used when the configuration lists none: (type, name) pairs. The colour histogram
+/// (thesis 4.1) finds the object; its colour outline, a refining cue, pins it to a fraction of a pixel.
+const std::vector<std::pair<std::string, std::string>> kDefaultObservationModels = {
+  { "stereo_pf/ColourHSI", "colour" }, { "stereo_pf/ColourContour", "colour_contour" }
+};
+
 /// An engine with the plugins it runs on. The class loaders are declared first so they are destroyed
 /// last: no plugin outlives the loader that made it.
 class Tracker
@@ -27,7 +34,7 @@ class Tracker
 public:
   /// Read the configuration:
   ///   state_model: {type: stereo_pf/Position3D, ...its parameters}        (default Position3D)
-  ///   observation_models: [{name: colour, type: stereo_pf/ColourHSI}, ...] (default one ColourHSI "colour")
+  ///   observation_models: [{name: colour, type: stereo_pf/ColourHSI}, ...] (default kDefaultObservationModels)
   ///   <name>: {...each observation model's parameters}
   ///   engine: {particles, seed, resample_threshold, estimator, ...}
   /// Throws PluginError or ParameterError with an explanation.

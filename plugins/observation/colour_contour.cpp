@@ -1,0 +1,505 @@
+// Colour-outline observation model; see include/stereo_pf/plugins/colour_contour.h.
+#include "stereo_pf/plugins/colour_contour.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <stdexcept>
+
+#include <opencv2/core/hal/intrin.hpp>
+#include <opencv2/imgproc.hpp>
+#include <pluginlib/class_list_macros.hpp>
+
+#include "stereo_pf/core/silhouette.h"
+
+namespace stereo_pf
+{
+namespace
+{
+// Pseudo-probability in P = (q + e) / (q + b + 2 e): a colour seen in neither histogram says nothing (0.5).
+constexpr double kPrior = 1e-3;
+// The background is learned outside the region grown by this fraction of its size on each side, so the
+// object's blurred rim (and a shadow next to it) stays out.
+constexpr double kBackgroundGrowth = 0.5;
+// Resolution of the soft-step table: 1/32 px is far below what the outline can be located to.
+constexpr float kStepsPerPixel = 32.0f;
+// Lines per vector of the outline-point computation.
+constexpr int kLines4 = cv::v_float32x4::nlanes;
+
+std::string scoped(const Parameters& p, const std::string& key)
+{
+  return p.prefix().empty() ? key : p.prefix() + "/" + key;
+}
+}  // namespace
+
+void ColourContour::onInitialize()
+{
+  const HsiBinning b = HsiBinning::fromParameters(params());
+  const Tunables t = readTunables();  // validate everything before changing any state
+  binner_ = std::make_unique<const HsiBinner>(b);  // the table: ~10 ms, once
+  binning_ = b;
+  target_ = background_ = TargetHistogram();  // a target learned with another binning would be meaningless
+  lut_.assign(256, 128);
+  applyTunables(t);
+}
+
+ColourContour::Tunables ColourContour::readTunables() const
+{
+  const Parameters& p = params();
+  Tunables t;
+  t.sigma = p.getDouble("sigma", 0.05, 0.001, 10.0);
+  t.lines = p.getInt("lines", 16, 4, 256);
+  t.line_half_length = p.getInt("line_half_length", 2, 1, 10);
+  t.softness = p.getDouble("softness", 0.7, 0.1, 10.0);
+  t.target_margin = p.getDouble("target_margin", 0.15, 0.0, 0.45);
+  t.radius = p.getDouble("radius", 0.0, 0.0, 2000.0);
+  t.min_radius = p.getDouble("min_radius", 2.0, 0.5, 1000.0);
+  t.perspective = p.getBool("perspective", true);
+  if (t.radius > 0.0 && t.radius < t.min_radius)
+    throw ParameterError("parameter '" + scoped(p, "radius") + "' = " + std::to_string(t.radius) +
+                         " is below '" + scoped(p, "min_radius") + "' = " + std::to_string(t.min_radius) +
+                         " (allowed: 0 = learned, or >= min_radius)");
+  return t;
+}
+
+void ColourContour::applyTunables(const Tunables& t)
+{
+  tunables_ = t;
+  const int half = t.line_half_length;
+  samples_per_line_ = 2 * half + 1;
+  const size_t samples = static_cast<size_t>(t.lines) * samples_per_line_;
+  const int padded = (t.lines + kLines4 - 1) / kLines4 * kLines4;
+  line_c_.assign(padded, 1.0f);
+  line_s_.assign(padded, 0.0f);
+  dx_.resize(samples);
+  dy_.resize(samples);
+  along_.resize(samples);
+  along_scaled_.resize(samples);
+  base_x_.resize(padded);
+  base_y_.resize(padded);
+  base_.resize(padded);
+  origin_.resize(padded);
+  reach_ = 0;
+  for (int k = 0; k < t.lines; ++k)
+  {
+    const double angle = 2.0 * M_PI * k / t.lines;
+    const double c = std::cos(angle), s = std::sin(angle);
+    line_c_[k] = static_cast<float>(c);
+    line_s_[k] = static_cast<float>(s);
+    for (int j = 0; j < samples_per_line_; ++j)
+    {
+      const size_t i = static_cast<size_t>(k) * samples_per_line_ + j;
+      digitalLineStep(c, s, j - half, dx_[i], dy_[i]);
+      along_[i] = static_cast<float>(dx_[i] * c + dy_[i] * s);
+      along_scaled_[i] = along_[i] * kStepsPerPixel;
+      reach_ = std::max(reach_, std::max(std::abs(dx_[i]), std::abs(dy_[i])));
+    }
+  }
+  offsets_step_ = 0;  // rebuilt for the image's row step at the next evaluation
+
+  // The soft step by signed distance, over every distance a sample can have: its position along the line
+  // (at most sqrt(2) + 0.36 px per step) plus the base pixel's rounding offset (at most 0.71 px).
+  const float max_distance = static_cast<float>(half) * 1.8f + 1.0f;
+  const int entries = 2 * static_cast<int>(std::ceil(max_distance * kStepsPerPixel)) + 1;
+  expected_.resize(entries);
+  for (int i = 0; i < entries; ++i)
+  {
+    const double d = (i - entries / 2) / kStepsPerPixel;
+    expected_[i] = static_cast<float>(1.0 / (1.0 + std::exp(d / t.softness)));
+  }
+  // m on plain background (P = 0): the mean squared step over the pattern, for a base pixel on the outline.
+  double sum = 0.0;
+  for (const float d : along_)
+  {
+    const double e = 1.0 / (1.0 + std::exp(d / t.softness));
+    sum += e * e;
+  }
+  background_mismatch_ = static_cast<float>(sum / along_.size());
+  // An unobservable hypothesis scores like background: no evidence either way.
+  invalid_log_likelihood_ = -background_mismatch_ / (2.0 * t.sigma * t.sigma);
+}
+
+void ColourContour::buildOffsets(size_t step)
+{
+  offsets_.resize(dx_.size());
+  for (size_t i = 0; i < dx_.size(); ++i)
+    offsets_[i] = static_cast<std::ptrdiff_t>(dy_[i]) * static_cast<std::ptrdiff_t>(step) + dx_[i];
+  offsets_step_ = step;
+}
+
+void ColourContour::reconfigure()
+{
+  const Tunables t = readTunables();  // throws before anything changes
+  ObservationModel::reconfigure();
+  applyTunables(t);
+}
+
+void ColourContour::setTarget(TargetHistogram target, TargetHistogram background)
+{
+  const int n = binning_.bins();
+  target_ = std::move(target);
+  // Nothing outside the region (it covers the image), or an old file: a uniform background.
+  background_ = background.valid() ? std::move(background) : TargetHistogram(std::vector<double>(n, 1.0));
+  lut_.assign(256, 128);
+  const std::vector<double>& q = target_.probabilities();
+  const std::vector<double>& b = background_.probabilities();
+  for (int i = 0; i < n && target_.valid(); ++i)
+    lut_[i] = cv::saturate_cast<uint8_t>(255.0 * (q[i] + kPrior) / (q[i] + b[i] + 2.0 * kPrior));
+  ++target_version_;
+}
+
+bool ColourContour::learnTarget(FeatureCache& cache, View view, const cv::Rect& roi, std::string& error)
+{
+  const cv::Mat& image = cache.image(view);
+  cv::Rect inner;
+  std::string reason;
+  if (!targetRegion(image.size(), roi, tunables_.target_margin, inner, reason))
+  {
+    error = name() + ": cannot learn the target: " + reason;
+    return false;
+  }
+  const cv::Mat& bins = binner_->cachedBins(cache, view, 0, image.rows);
+  TargetHistogram target = TargetHistogram::fromBinImage(bins, inner, binning_.bins());
+  if (!target.valid())
+  {
+    error = name() + ": cannot learn the target: no pixel of " + describeRect(inner) + " could be binned";
+    return false;
+  }
+  // The background: every pixel outside the grown region (OpenCV's histogram of the bin image under a mask).
+  const int gx = static_cast<int>(std::ceil(kBackgroundGrowth * roi.width));
+  const int gy = static_cast<int>(std::ceil(kBackgroundGrowth * roi.height));
+  cv::Mat mask(bins.size(), CV_8UC1, cv::Scalar(255));
+  cv::rectangle(mask, cv::Rect(roi.x - gx, roi.y - gy, roi.width + 2 * gx, roi.height + 2 * gy), cv::Scalar(0),
+                cv::FILLED);
+  cv::Mat counts;
+  const int channels[] = { 0 };
+  const int hist_size[] = { binning_.bins() };
+  const float range[] = { 0.0f, static_cast<float>(binning_.bins()) };
+  const float* ranges[] = { range };
+  cv::calcHist(&bins, 1, channels, mask, counts, 1, hist_size, ranges);
+  std::vector<double> background(binning_.bins());
+  for (int b = 0; b < binning_.bins(); ++b)
+    background[b] = counts.at<float>(b);
+  setTarget(std::move(target), TargetHistogram(background));
+  const cv::Rect clipped = roi & cv::Rect(0, 0, image.cols, image.rows);
+  learned_radius_ = 0.5f * static_cast<float>(std::min(clipped.width, clipped.height));
+  return true;
+}
+
+const cv::Mat& ColourContour::foregroundMap(FeatureCache& cache, View view, int y0, int y1)
+{
+  if (!binner_)
+    throw std::logic_error("ColourContour: used before initialize()");
+  const std::string key = "colour_contour/" + std::to_string(reinterpret_cast<uintptr_t>(this)) + "/" +
+                          std::to_string(target_version_);
+  return cache.getRows(view, key, y0, y1, [this, &cache, view](const cv::Mat& image, cv::Mat& out, int a, int b) {
+    out.create(image.size(), CV_8UC1);
+    if (a >= b)
+      return;
+    cv::Mat rows = out.rowRange(a, b);
+    const cv::Mat lut(1, 256, CV_8UC1, lut_.data());
+    cv::LUT(binner_->cachedBins(cache, view, a, b).rowRange(a, b), lut, rows);
+  });
+}
+
+bool ColourContour::outline(const ImageHypotheses& hyp, int i, float focal, float cx, float cy, Outline& o) const
+{
+  if (!hyp.valid[i])
+    return false;
+  const float u = hyp.u[i], v = hyp.v[i];
+  const bool has_radius = hyp.radius[i] > 0.0f;
+  const float r = has_radius ? std::max(hyp.radius[i], static_cast<float>(tunables_.min_radius)) :
+                               static_cast<float>(radius2D());
+  // Also rejects NaN: a hypothesis this far off cannot have half of its samples inside any image.
+  const float limit = 1e5f;
+  if (!(r > 0.0f && r < limit && std::abs(u) < limit && std::abs(v) < limit))
+    return false;
+  o.cu = u;
+  o.cv = v;
+  o.ex = 1.0f;
+  o.ey = 0.0f;
+  o.a = o.b = r;
+  if (has_radius && tunables_.perspective)
+    sphereSilhouette(u, v, r, focal, cx, cy, o.cu, o.cv, o.ex, o.ey, o.a, o.b);
+  return true;
+}
+
+namespace
+{
+// Sum of squared differences over the samples of every line when all of them are inside the image: no
+// per-sample test, and with the samples per line known at compile time the inner loop unrolls into
+// independent work (the lines' base pixels and table origins are computed beforehand).
+template <int M>
+float insideSum(const uint8_t* fg, const std::ptrdiff_t* base, const float* origin, const std::ptrdiff_t* offsets,
+                const float* along, const float* expected, int last, int lines)
+{
+  constexpr float kScale = 1.0f / 255.0f;
+  float sum = 0.0f;
+  for (int k = 0; k < lines; ++k)
+  {
+    const uint8_t* p = fg + base[k];
+    const float o = origin[k];
+    const std::ptrdiff_t* off = offsets + k * M;
+    const float* al = along + k * M;
+    float line_sum = 0.0f;
+    for (int j = 0; j < M; ++j)
+    {
+      const int t = std::min(std::max(static_cast<int>(al[j] + o), 0), last);
+      const float diff = static_cast<float>(p[off[j]]) * kScale - expected[t];
+      line_sum += diff * diff;
+    }
+    sum += line_sum;
+  }
+  return sum;
+}
+}  // namespace
+
+float ColourContour::score(const uint8_t* fg, size_t step, int width, int height, const Outline& o)
+{
+  if (step != offsets_step_)
+    buildOffsets(step);
+  const int lines = tunables_.lines;
+  const int m = samples_per_line_;
+  const float ab = o.a * o.b, a2 = o.a * o.a, b2 = o.b * o.b;
+  const bool circle = o.a == o.b;
+  const std::ptrdiff_t stride = static_cast<std::ptrdiff_t>(step);
+  const float centre = static_cast<float>(expected_.size() / 2);
+  // Every line's base pixel (the outline point rounded) and the table position of the outline point relative
+  // to it: a sample's distance is its pattern offset plus where the base pixel lies along the line. + 0.5 so
+  // that truncation rounds (the table covers every distance a sample can have; the clamp is a safety net).
+  // The line arrays are padded to whole vectors (padding: direction (1, 0), never read afterwards).
+  int* base_x = base_x_.data();
+  int* base_y = base_y_.data();
+  std::ptrdiff_t* base = base_.data();
+  float* origin = origin_.data();
+  {
+    // Four lines per vector instruction: per line this is a square root, a division and two roundings, as
+    // much work as its samples.
+    const cv::v_float32x4 v_cu = cv::v_setall_f32(o.cu), v_cv = cv::v_setall_f32(o.cv);
+    const cv::v_float32x4 v_ex = cv::v_setall_f32(o.ex), v_ey = cv::v_setall_f32(o.ey);
+    const cv::v_float32x4 v_ab = cv::v_setall_f32(ab), v_a2 = cv::v_setall_f32(a2), v_b2 = cv::v_setall_f32(b2);
+    const cv::v_float32x4 v_a = cv::v_setall_f32(o.a);
+    const cv::v_float32x4 v_steps = cv::v_setall_f32(kStepsPerPixel), v_centre = cv::v_setall_f32(centre + 0.5f);
+    for (int k = 0; k < lines; k += kLines4)
+    {
+      const cv::v_float32x4 c = cv::v_load(line_c_.data() + k), sn = cv::v_load(line_s_.data() + k);
+      cv::v_float32x4 rho = v_a;
+      if (!circle)
+      {
+        // Distance from the centre to the ellipse along the line (psi: its angle to the radial axis).
+        const cv::v_float32x4 cos_psi = c * v_ex + sn * v_ey, sin_psi = sn * v_ex - c * v_ey;
+        rho = v_ab / cv::v_sqrt(v_b2 * cos_psi * cos_psi + v_a2 * sin_psi * sin_psi);
+      }
+      const cv::v_float32x4 bx = v_cu + rho * c, by = v_cv + rho * sn;
+      const cv::v_int32x4 xi = cv::v_round(bx), yi = cv::v_round(by);
+      cv::v_store(base_x + k, xi);
+      cv::v_store(base_y + k, yi);
+      const cv::v_float32x4 e = (cv::v_cvt_f32(xi) - bx) * c + (cv::v_cvt_f32(yi) - by) * sn;
+      cv::v_store(origin + k, e * v_steps + v_centre);
+    }
+  }
+  for (int k = 0; k < lines; ++k)
+    base[k] = static_cast<std::ptrdiff_t>(base_y[k]) * stride + base_x[k];
+  const int last = static_cast<int>(expected_.size()) - 1;
+  const float extent = std::max(o.a, o.b) + static_cast<float>(reach_) + 1.0f;
+  if (o.cu - extent >= 0.0f && o.cu + extent <= static_cast<float>(width - 1) && o.cv - extent >= 0.0f &&
+      o.cv + extent <= static_cast<float>(height - 1))
+  {
+    // Every sample inside (the usual case).
+    const std::ptrdiff_t* off = offsets_.data();
+    const float* al = along_scaled_.data();
+    const float* ex = expected_.data();
+    float sum;
+    switch (m)
+    {
+      case 3:
+        sum = insideSum<3>(fg, base, origin, off, al, ex, last, lines);
+        break;
+      case 5:
+        sum = insideSum<5>(fg, base, origin, off, al, ex, last, lines);
+        break;
+      case 7:
+        sum = insideSum<7>(fg, base, origin, off, al, ex, last, lines);
+        break;
+      default:
+        sum = 0.0f;
+        for (int k = 0; k < lines; ++k)
+          for (int i = k * m; i < (k + 1) * m; ++i)
+          {
+            const int t = std::min(std::max(static_cast<int>(al[i] + origin[k]), 0), last);
+            const float diff = static_cast<float>(fg[base[k] + off[i]]) * (1.0f / 255.0f) - ex[t];
+            sum += diff * diff;
+          }
+    }
+    return sum / static_cast<float>(lines * m);
+  }
+  // Near the border: test every sample.
+  constexpr float kScale = 1.0f / 255.0f;
+  float sum = 0.0f;
+  int inside = 0;
+  for (int k = 0; k < lines; ++k)
+    for (int j = 0; j < m; ++j)
+    {
+      const size_t i = static_cast<size_t>(k) * m + j;
+      const int x = base_x[k] + dx_[i], y = base_y[k] + dy_[i];
+      if (x < 0 || x >= width || y < 0 || y >= height)
+        continue;
+      const int t = std::min(std::max(static_cast<int>(along_scaled_[i] + origin[k]), 0), last);
+      const float diff = static_cast<float>(fg[base[k] + offsets_[i]]) * kScale - expected_[t];
+      sum += diff * diff;
+      ++inside;
+    }
+  if (2 * inside < lines * m)
+    return std::numeric_limits<float>::quiet_NaN();
+  return sum / static_cast<float>(inside);
+}
+
+void ColourContour::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
+                             Eigen::Ref<Eigen::VectorXd> similarity)
+{
+  const int n = hyp.size();
+  if (log_likelihood.size() != n || similarity.size() != n || static_cast<int>(hyp.v.size()) != n ||
+      static_cast<int>(hyp.radius.size()) != n || static_cast<int>(hyp.valid.size()) != n)
+    throw std::invalid_argument(name() + ": evaluate: hypothesis arrays and outputs must all have " +
+                                std::to_string(n) + " entries");
+  log_likelihood.setConstant(invalid_log_likelihood_);
+  similarity.setZero();
+  if (!target_.valid() || n == 0)
+    return;
+  const int width = cache.image(hyp.view).cols;
+  const int height = cache.image(hyp.view).rows;
+  const float focal = static_cast<float>(cache.geometry().fx());
+  const float cx = static_cast<float>(cache.geometry().cx());
+  const float cy = static_cast<float>(cache.geometry().cy());
+
+  // The outlines first: they say which rows of the P map are read.
+  outlines_.resize(static_cast<size_t>(n));
+  float top = static_cast<float>(height), bottom = -1.0f;
+  for (int i = 0; i < n; ++i)
+  {
+    Outline& o = outlines_[static_cast<size_t>(i)];
+    if (!outline(hyp, i, focal, cx, cy, o))
+    {
+      o.a = 0.0f;
+      continue;
+    }
+    const float extent = std::max(o.a, o.b) + static_cast<float>(reach_) + 1.0f;
+    top = std::min(top, o.cv - extent);
+    bottom = std::max(bottom, o.cv + extent);
+  }
+  const std::pair<int, int> rows = rowSpan(top, bottom, height);
+  const cv::Mat& fg = foregroundMap(cache, hyp.view, rows.first, rows.second);
+
+  const double inv_two_sigma2 = 1.0 / (2.0 * tunables_.sigma * tunables_.sigma);
+  const double inv_background = 1.0 / background_mismatch_;
+  for (int i = 0; i < n; ++i)
+  {
+    const Outline& o = outlines_[static_cast<size_t>(i)];
+    if (!(o.a > 0.0f))
+      continue;
+    const float mis = score(fg.data, fg.step[0], width, height, o);
+    if (std::isnan(mis))
+      continue;
+    log_likelihood[i] = -mis * inv_two_sigma2;
+    similarity[i] = std::max(0.0, 1.0 - mis * inv_background);
+  }
+}
+
+double ColourContour::mismatch(FeatureCache& cache, View view, float u, float v, float radius)
+{
+  if (!target_.valid())
+    return std::numeric_limits<double>::quiet_NaN();
+  ImageHypotheses hyp;
+  hyp.view = view;
+  hyp.resize(1);
+  hyp.u[0] = u;
+  hyp.v[0] = v;
+  hyp.radius[0] = radius;
+  hyp.valid[0] = 1;
+  Outline o;
+  const StereoGeometry& g = cache.geometry();
+  if (!outline(hyp, 0, static_cast<float>(g.fx()), static_cast<float>(g.cx()), static_cast<float>(g.cy()), o))
+    return std::numeric_limits<double>::quiet_NaN();
+  const cv::Mat& image = cache.image(view);
+  const float extent = std::max(o.a, o.b) + static_cast<float>(reach_) + 1.0f;
+  const std::pair<int, int> rows = rowSpan(o.cv - extent, o.cv + extent, image.rows);
+  const cv::Mat& fg = foregroundMap(cache, view, rows.first, rows.second);
+  return score(fg.data, fg.step[0], image.cols, image.rows, o);
+}
+
+void ColourContour::saveTarget(cv::FileStorage& fs) const
+{
+  if (!target_.valid())
+    return;
+  fs << name() << "{";
+  fs << "type" << "stereo_pf/ColourContour";
+  binning_.write(fs);
+  fs << "histogram" << target_.probabilities();
+  fs << "background" << background_.probabilities();
+  fs << "learned_radius" << static_cast<double>(learned_radius_);
+  fs << "}";
+}
+
+bool ColourContour::loadTarget(const cv::FileNode& node, std::string& error)
+{
+  cv::FileNode m = node;
+  if (m.isMap() && m["histogram"].empty())
+    m = node[name()];
+  if (m.empty() || !m.isMap())
+  {
+    error = name() + ": no colour-outline target named '" + name() + "' in the file";
+    return false;
+  }
+  HsiBinning stored;
+  std::string reason;
+  if (!HsiBinning::read(m, stored, reason))
+  {
+    error = name() + ": colour-outline target " + reason;
+    return false;
+  }
+  if (!stored.sameAs(binning_))
+  {
+    error = name() + ": the target was learned with HSI binning " + stored.describe() + " but this model is " +
+            "configured with " + binning_.describe() + "; relearn the target or set the same binning";
+    return false;
+  }
+  std::vector<double> histogram, background;
+  if (m["histogram"].isSeq())
+    m["histogram"] >> histogram;
+  if (m["background"].isSeq())
+    m["background"] >> background;
+  const size_t bins = static_cast<size_t>(binning_.bins());
+  if (histogram.size() != bins || background.size() != bins)
+  {
+    error = name() + ": the target needs 'histogram' and 'background' lists of " + std::to_string(bins) +
+            " entries (found " + std::to_string(histogram.size()) + " and " + std::to_string(background.size()) + ")";
+    return false;
+  }
+  if (!m["learned_radius"].isReal() && !m["learned_radius"].isInt())
+  {
+    error = name() + ": the target lacks the number 'learned_radius'";
+    return false;
+  }
+  try
+  {
+    TargetHistogram target(histogram), back(background);
+    if (!target.valid())
+    {
+      error = name() + ": the target histogram is all zero";
+      return false;
+    }
+    setTarget(std::move(target), std::move(back));
+  }
+  catch (const std::invalid_argument& e)
+  {
+    error = name() + ": the target's histograms are invalid: " + e.what();
+    return false;
+  }
+  learned_radius_ = static_cast<float>(static_cast<double>(m["learned_radius"]));
+  return true;
+}
+
+}  // namespace stereo_pf
+
+PLUGINLIB_EXPORT_CLASS(stereo_pf::ColourContour, stereo_pf::ObservationModel)
