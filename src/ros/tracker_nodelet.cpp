@@ -250,6 +250,8 @@ void TrackerNodelet::setupReconfigure(const ros::NodeHandle& mt_pnh)
   seed("found_similarity", c.found_similarity);
   seed("lost_similarity", c.lost_similarity);
   seed("respawn_fraction", c.respawn_fraction);
+  seed("refine_jitter", c.refine_jitter);
+  seed("refine_search_weight", c.refine_search_weight);
 
   engine_server_ = std::make_unique<dynamic_reconfigure::Server<TrackerEngineConfig>>(engine_server_mutex_, engine_nh);
   engine_server_->setCallback(boost::bind(&TrackerNodelet::engineReconfigure, this, _1, _2));
@@ -436,6 +438,8 @@ void TrackerNodelet::applyReconfigure(const std::optional<TrackerEngineConfig>& 
     changes["engine/found_similarity"] = formatNumber(c.found_similarity);
     changes["engine/lost_similarity"] = formatNumber(c.lost_similarity);
     changes["engine/respawn_fraction"] = formatNumber(c.respawn_fraction);
+    changes["engine/refine_jitter"] = formatNumber(c.refine_jitter);
+    changes["engine/refine_search_weight"] = formatNumber(c.refine_search_weight);
   }
   if (state_config && state_config->noise >= 0.0)
     changes["state_model/noise"] = formatNumber(state_config->noise);
