@@ -528,6 +528,7 @@ enum class StepConfig
   Position3DHistogram,  // Position3D + ColourHSI alone (the thesis's colour model) on pendulum_uncluttered
   Position3DAllCues,  // Position3D + ColourHSI, ColourContour, TextureEdge, ShapeCircle on checkered_cluttered
   SCColour,           // StereoConstraints + ColourHSI + ColourContour on pendulum_uncluttered
+  SCHistogram,        // StereoConstraints + ColourHSI alone on pendulum_uncluttered
   Velocity3DColour    // Velocity3D + ColourHSI + ColourContour on pendulum_uncluttered
 };
 
@@ -536,14 +537,14 @@ void BM_Step(benchmark::State& state, StepConfig config)
   const int n = static_cast<int>(state.range(0));
   RenderedScene& s = scene(config == StepConfig::Position3DAllCues ? kCheckered : kUncluttered);
   std::shared_ptr<StateModel> model;
-  if (config == StepConfig::SCColour)
+  if (config == StepConfig::SCColour || config == StepConfig::SCHistogram)
     model = makeModel<StereoConstraints>("state_model");
   else if (config == StepConfig::Velocity3DColour)
     model = makeModel<Velocity3D>("state_model");
   else
     model = makeModel<Position3D>("state_model");
   std::vector<std::shared_ptr<ObservationModel>> cues = { colourCue() };
-  if (config != StepConfig::Position3DHistogram)
+  if (config != StepConfig::Position3DHistogram && config != StepConfig::SCHistogram)
     cues.push_back(contourCue());
   if (config == StepConfig::Position3DAllCues)
   {
@@ -579,10 +580,12 @@ void BM_Step(benchmark::State& state, StepConfig config)
   state.counters["tracking"] = frames > 0 ? static_cast<double>(tracking) / frames : 0.0;
   state.counters["err_cm"] = frames > 0 ? 100.0 * error_sum / frames : 0.0;
 }
-// Registered per scene (see scene()): the three colour-only configurations first.
+// Registered per scene (see scene()): the colour-only configurations first ("colour": the default cues,
+// histogram and outline; "histogram": the thesis's colour model alone).
 BENCHMARK_CAPTURE(BM_Step, Position3D_colour, StepConfig::Position3DColour)->Apply(particleCounts);
 BENCHMARK_CAPTURE(BM_Step, Position3D_histogram, StepConfig::Position3DHistogram)->Apply(particleCounts);
 BENCHMARK_CAPTURE(BM_Step, StereoConstraints_colour, StepConfig::SCColour)->Apply(particleCounts);
+BENCHMARK_CAPTURE(BM_Step, StereoConstraints_histogram, StepConfig::SCHistogram)->Apply(particleCounts);
 BENCHMARK_CAPTURE(BM_Step, Velocity3D_colour, StepConfig::Velocity3DColour)->Apply(particleCounts);
 BENCHMARK_CAPTURE(BM_Step, Position3D_all_cues, StepConfig::Position3DAllCues)->Apply(particleCounts);
 

@@ -26,15 +26,25 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 COUNTS = [200, 400, 800, 1000, 1500, 2000, 4000]
 FILTERS = ["StereoConstraints", "Position3D", "Velocity3D"]
+# Every filter runs with the default cues (the colour histogram and its outline) and with the thesis's colour
+# model alone (the histogram: config/thesis_colour.yaml), labelled "<filter> thesis colour".
+THESIS = " thesis colour"
+THESIS_ARGS = ["--config", "config/thesis_colour.yaml"]
+THESIS_FILTERS = [f + THESIS for f in FILTERS]
 SHORT = {"StereoConstraints": "SC", "Position3D": "3D", "Velocity3D": "3D+velocity"}
+SHORT.update({f + THESIS: SHORT[f] + " (thesis colour)" for f in FILTERS})
 BASELINES = ["csrt", "kcf", "camshift"]
 SWEEP_SCENES = ["pendulum_uncluttered", "pendulum_cluttered"]
 OTHER_SCENES = ["occlusion", "multi_object", "checkered_cluttered", "colour_distractor"]
-CUE_SCENES = ["checkered_cluttered", "colour_distractor"]  # also run with the thesis's three cues alone
-# Position3D (1000 particles, every scene) with the other shipped configurations besides colour alone.
+CUE_SCENES = ["checkered_cluttered", "colour_distractor"]  # also run with the three cues without stereo
+# Position3D (1000 particles, every scene) with the other shipped configurations.
 CONFIGS = [("Position3D colour+stereo", ["--config", "config/colour_stereo.yaml"]),
            ("Position3D all cues", ["--config", "config/multi_cue.yaml"])]
-THREE_CUES = ("Position3D colour+texture+shape", ["--config", "config/multi_cue.yaml", "--set", "stereo/enabled=false"])
+THREE_CUES = [("Position3D colour+texture+shape",
+               ["--config", "config/multi_cue.yaml", "--set", "stereo/enabled=false"]),
+              ("Position3D thesis colour+texture+shape",
+               ["--config", "config/multi_cue.yaml", "--set", "stereo/enabled=false", "--set",
+                "colour_contour/enabled=false"])]
 # Thesis Table 7.1: frames per second on a 1.8 GHz Pentium 4 at 320x240 (SC per set, 3D).
 THESIS_FPS = {200: (16.60, 25.00), 400: (6.23, 14.20), 800: (1.92, 7.69), 1000: (1.25, 6.25),
               1500: (0.63, 4.34), 2000: (0.35, 3.22), 4000: (0.07, 1.63)}
@@ -42,6 +52,12 @@ WRONG_LOCK_ERROR = 0.10   # m: the estimate is this far from the target...
 WRONG_LOCK_NEAR = 0.07    # m: ...and within two ball radii of another object
 COLOURS = {"StereoConstraints": "tab:blue", "Position3D": "tab:purple", "Velocity3D": "tab:green",
            "csrt": "tab:red", "kcf": "tab:orange", "camshift": "tab:brown"}
+COLOURS.update({f + THESIS: COLOURS[f] for f in FILTERS})
+
+
+def style(label):
+    """Line style of a filter: solid with the default cues, dashed with the thesis's colour model alone."""
+    return "--" if label.endswith(THESIS) else "-"
 
 
 class Run:
@@ -68,10 +84,11 @@ def plan(seeds, quick):
 
     for scene in SWEEP_SCENES + OTHER_SCENES:
         for f in FILTERS:
-            for n in (counts if scene in SWEEP_SCENES else [1000]):
-                for s in range(1, seeds + 1):
-                    add(scene, f, ["--state", f, "--particles", str(n), "--seed", str(s)], n, s)
-        for label, cfg in CONFIGS + ([THREE_CUES] if scene in CUE_SCENES else []):
+            for label, extra in ((f, []), (f + THESIS, THESIS_ARGS)):
+                for n in (counts if scene in SWEEP_SCENES else [1000]):
+                    for s in range(1, seeds + 1):
+                        add(scene, label, extra + ["--state", f, "--particles", str(n), "--seed", str(s)], n, s)
+        for label, cfg in CONFIGS + (THREE_CUES if scene in CUE_SCENES else []):
             for s in range(1, seeds + 1):
                 add(scene, label, cfg + ["--state", "Position3D", "--particles", "1000", "--seed", str(s)], 1000, s)
         for b in BASELINES:  # deterministic: one run each
@@ -227,6 +244,10 @@ class Results:
         return sum(1 for r in rs if r.frames["wrong"].any()), sum(int(r.frames["wrong"].sum()) for r in rs), len(rs)
 
 
+CONFIG_NAMES = {"Position3D": "histogram + outline (default)", "Position3D" + THESIS: "thesis colour (histogram)",
+                "Position3D colour+stereo": "histogram + outline + stereo"}
+
+
 def baseline_n(label):
     return 0 if label in BASELINES else 1000
 
@@ -237,24 +258,24 @@ def baseline_n(label):
 def fig_vs_particles(res, metric, ylabel, title, path):
     fig, axes = plt.subplots(1, len(SWEEP_SCENES), figsize=(11, 4), sharey=True)
     for ax, scene in zip(axes, SWEEP_SCENES):
-        for f in FILTERS:
+        for f in FILTERS + THESIS_FILTERS:
             ns = [n for n in COUNTS if res.get(scene, f, n)]
             vals = [metric(scene, f, n) for n in ns]
             mean = [np.nanmean(v) if len(v) else np.nan for v in vals]
             std = [np.nanstd(v) if len(v) else np.nan for v in vals]
-            ax.errorbar(ns, mean, yerr=std, marker="o", capsize=3, label=SHORT[f], color=COLOURS[f])
+            ax.errorbar(ns, mean, yerr=std, marker="o", capsize=3, label=SHORT[f], color=COLOURS[f], ls=style(f))
         for b in BASELINES:
             v = metric(scene, b, 0)
             if len(v) and math.isfinite(v[0]):
-                ax.axhline(v[0], ls="--", color=COLOURS[b], label="%s (OpenCV)" % b.upper())
+                ax.axhline(v[0], ls=":", lw=2, color=COLOURS[b], label="%s (OpenCV)" % b.upper())
         ax.set_xscale("log")
         ax.set_xticks(COUNTS)
         ax.set_xticklabels([str(n) for n in COUNTS], rotation=45)
         ax.set_xlabel("particles (per set for SC)")
         ax.set_title(scene.replace("_", " "))
         ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)  # per panel: the baselines shown differ (one that never converges has no line)
     axes[0].set_ylabel(ylabel)
-    axes[-1].legend(fontsize=8)
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=90)
@@ -284,8 +305,10 @@ def fig_per_frame(res, scene, path):
 
 
 def fig_per_axis(res, scene, path):
-    cases = [("StereoConstraints", 800), ("Position3D", 2000)]  # the thesis's Fig. 7.15 and 7.16
-    fig, axes = plt.subplots(len(cases), 1, figsize=(10, 6), sharex=True)
+    # The thesis's Fig. 7.15 and 7.16, with its colour model and with the default cues.
+    cases = [("StereoConstraints" + THESIS, 800), ("Position3D" + THESIS, 2000), ("StereoConstraints", 800),
+             ("Position3D", 2000)]
+    fig, axes = plt.subplots(len(cases), 1, figsize=(10, 10), sharex=True)
     for ax, (f, n) in zip(axes, cases):
         rs = res.get(scene, f, n)
         if not rs:
@@ -309,20 +332,18 @@ def fig_per_axis(res, scene, path):
 def fig_convergence(res, path):
     fig, axes = plt.subplots(1, len(SWEEP_SCENES), figsize=(11, 4), sharey=True)
     for ax, scene in zip(axes, SWEEP_SCENES):
-        for f in FILTERS:
+        for f in FILTERS + THESIS_FILTERS:
             ns = [n for n in COUNTS if res.get(scene, f, n)]
             conv = [res.converged(scene, f, n)[0] for n in ns]
-            ax.plot(ns, [np.mean(c) if c else np.nan for c in conv], marker="o", color=COLOURS[f],
+            ax.plot(ns, [np.mean(c) if c else np.nan for c in conv], marker="o", color=COLOURS[f], ls=style(f),
                     label="%s mean" % SHORT[f])
-            ax.plot(ns, [np.max(c) if c else np.nan for c in conv], ls=":", marker="v", color=COLOURS[f],
-                    label="%s worst" % SHORT[f])
         ax.set_xscale("log")
         ax.set_xticks(COUNTS)
         ax.set_xticklabels([str(n) for n in COUNTS], rotation=45)
         ax.set_xlabel("particles (per set for SC)")
         ax.set_title(scene.replace("_", " "))
         ax.grid(alpha=0.3)
-    axes[0].set_ylabel("frames to convergence")
+    axes[0].set_ylabel("frames to convergence (mean over seeds)")
     axes[-1].legend(fontsize=8)
     fig.suptitle("Frames until the error stays below 5 cm (10 visible frames in a row)")
     fig.tight_layout()
@@ -333,13 +354,14 @@ def fig_convergence(res, path):
 def fig_cost(res, path):
     fig, ax = plt.subplots(figsize=(7, 4.5))
     scene = SWEEP_SCENES[0]
-    for f in FILTERS:
+    for f in FILTERS + THESIS_FILTERS:
         ns = [n for n in COUNTS if res.get(scene, f, n)]
-        ax.plot(ns, [np.median(res.ms(scene, f, n)) for n in ns], marker="o", color=COLOURS[f], label=SHORT[f])
+        ax.plot(ns, [np.median(res.ms(scene, f, n)) for n in ns], marker="o", color=COLOURS[f], ls=style(f),
+                label=SHORT[f])
     for b in BASELINES:
         v = res.ms(scene, b, 0)
         if v:
-            ax.axhline(v[0], ls="--", color=COLOURS[b], label="%s (OpenCV, both images)" % b.upper())
+            ax.axhline(v[0], ls=":", lw=2, color=COLOURS[b], label="%s (OpenCV, both images)" % b.upper())
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xticks(COUNTS)
@@ -373,7 +395,7 @@ def fig_events(res, path):
                 continue
             errs = np.array([np.where(r.frames["valid"], r.frames["err"], np.nan) for r in rs])
             ax.plot(rs[0].frames["frame"], 100 * np.nanmean(errs, axis=0), lw=1, color=COLOURS[label],
-                    ls="-" if label in FILTERS else "--",
+                    ls="-" if label in FILTERS else ":",
                     label=(SHORT.get(label, label.upper()) + (" 1000" if label in FILTERS else "")))
         ax.set_ylim(0, 40)
         ax.set_ylabel("error, cm")
@@ -436,9 +458,13 @@ def write_report(res, runs, args, elapsed, bench_text, docs_dir, fig_dir_rel):
     w("**Set-up.** %d track_bag runs on %s (%d cores; two runs at a time, each pinned to its own core with "
       "`taskset`), %s build. Scenes are make_scene's synthetic 640x480 stereo bags at 30 fps, 300 frames, "
       "fx = 525 px, baseline 9 cm, an orange ball of radius 3.5 cm about 1.1 m away (see `scenes/`). Particle "
-      "filters: %d seeds per row, uniform initialisation over the viewing frustum, colour cue only unless a row "
-      "names other cues: 'colour+stereo' is `config/colour_stereo.yaml`, 'all cues' is `config/multi_cue.yaml` "
-      "(colour, texture, shape and stereo), 'colour+texture+shape' the same without stereo. For StereoConstraints the particle count is per set (left and "
+      "filters: %d seeds per row, uniform initialisation over the viewing frustum. Cues: a row without a suffix "
+      "uses the default cues, the colour histogram (thesis 4.1) and the outline of the target's colour "
+      "(ColourContour, a refining cue applied after the histogram on the resampled, jittered particles: see the "
+      "README); 'thesis colour' is the thesis's colour model alone (`config/thesis_colour.yaml`); "
+      "'colour+stereo' is `config/colour_stereo.yaml`, 'all cues' is `config/multi_cue.yaml` (colour and "
+      "outline, texture, shape and stereo), 'colour+texture+shape' the same without stereo, and 'thesis "
+      "colour+texture+shape' also without the outline. For StereoConstraints the particle count is per set (left and "
       "right), as in the thesis. OpenCV baselines (CSRT, KCF from opencv_contrib; CamShift on a hue "
       "back-projection) run on both images independently from the same target box and are triangulated; they "
       "are deterministic, so one run each. Times are per stereo frame on one core; for the two pendulum scenes "
@@ -461,9 +487,9 @@ def write_report(res, runs, args, elapsed, bench_text, docs_dir, fig_dir_rel):
     # Acceptance: Position3D vs the best baseline.
     w("## Position3D against OpenCV's trackers")
     w("")
-    w("Position3D with 1000 particles, colour alone (the thesis's model and the built-in default) and with the "
-      "stereo cue (`config/colour_stereo.yaml`), against the best OpenCV baseline (by RMS after convergence) "
-      "and CSRT's cost, all from this run.")
+    w("Position3D with 1000 particles with the default cues (colour histogram and outline), with the thesis's "
+      "colour model alone, and with the stereo cue added (`config/colour_stereo.yaml`), against the best OpenCV "
+      "baseline (by RMS after convergence) and CSRT's cost, all from this run.")
     w("")
     w("| scene | Position3D config | RMS after conv. cm (mean of %d seeds) | mean error cm | ms / frame | best "
       "baseline | its RMS cm | its mean error cm | CSRT ms / frame | CSRT / Position3D time |" % args.seeds)
@@ -477,13 +503,13 @@ def write_report(res, runs, args, elapsed, bench_text, docs_dir, fig_dir_rel):
                 best, best_rms = b, v[0]
         best_mean = res.mean_err_cm(scene, best, 0)[0] if best else float("nan")
         csrt_ms = res.ms(scene, "csrt", 0)
-        for label in ["Position3D", CONFIGS[0][0]]:
+        for label in ["Position3D", "Position3D" + THESIS, CONFIGS[0][0]]:
             p_rms = stats(res.rms(scene, label, 1000))[0]
             p_mean = np.mean(res.mean_err_cm(scene, label, 1000))
             p_ms = np.median(res.ms(scene, label, 1000))
             ratio = csrt_ms[0] / p_ms if csrt_ms else float("nan")
             w("| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |" % (
-                scene.replace("_", " "), "colour" if label == "Position3D" else "colour + stereo", fmt(p_rms),
+                scene.replace("_", " "), CONFIG_NAMES[label], fmt(p_rms),
                 fmt(p_mean), fmt(p_ms), best.upper() if best else "none converged", fmt(best_rms), fmt(best_mean),
                 fmt(csrt_ms[0] if csrt_ms else None), fmt(ratio, "%.1fx")))
             verdicts.append((scene, label, p_rms, best, best_rms, ratio))
@@ -497,7 +523,7 @@ def write_report(res, runs, args, elapsed, bench_text, docs_dir, fig_dir_rel):
             acc = "less accurate than %s by %.2f cm RMS" % (best.upper(), p_rms - best_rms)
         spd = ("%.0fx faster than CSRT" % ratio) if math.isfinite(ratio) else "not compared with CSRT"
         w("- %s, %s: Position3D is %s, and %s%s." % (
-            scene.replace("_", " "), "colour" if label == "Position3D" else "colour + stereo", acc, spd,
+            scene.replace("_", " "), CONFIG_NAMES[label], acc, spd,
             "" if ratio >= 10 else " (the target is 10x: missed)"))
     w("")
 
@@ -506,18 +532,20 @@ def write_report(res, runs, args, elapsed, bench_text, docs_dir, fig_dir_rel):
     w("")
     w("The thesis measured a 1.8 GHz Pentium 4 at 320x240 with the O(N^2) coupling; we measure one core of "
       "this machine at 640x480 with the O(N) grid coupling. The hardware and image size differ, so compare "
-      "trends, not absolute numbers. Ours: frames per second = 1000 / median ms per stereo frame over the "
-      "seeds, uncluttered pendulum, colour cue.")
+      "trends, not absolute numbers. Ours: frames per second = 1000 / ms per stereo frame (one run alone, "
+      "seed 1), uncluttered pendulum, with the thesis's colour model and with the default cues (histogram and "
+      "outline).")
     w("")
-    w("| particles | thesis SC fps | thesis 3D fps | our SC fps | our 3D fps | our 3D+velocity fps |")
-    w("|---|---|---|---|---|---|")
+    w("| particles | thesis SC fps | thesis 3D fps | our SC fps, thesis colour | our 3D fps, thesis colour | our SC "
+      "fps | our 3D fps | our 3D+velocity fps |")
+    w("|---|---|---|---|---|---|---|---|")
     scene = SWEEP_SCENES[0]
     for n in COUNTS:
         ours = []
-        for f in FILTERS:
+        for f in ["StereoConstraints" + THESIS, "Position3D" + THESIS] + FILTERS:
             v = res.ms(scene, f, n)
             ours.append(fmt(1000.0 / np.median(v), "%.0f") if v else "-")
-        w("| %d | %.2f | %.2f | %s | %s | %s |" % (n, THESIS_FPS[n][0], THESIS_FPS[n][1], ours[0], ours[1], ours[2]))
+        w("| %d | %.2f | %.2f | %s |" % (n, THESIS_FPS[n][0], THESIS_FPS[n][1], " | ".join(ours)))
     w("")
     w("![cost](%s/cost_vs_particles.png)" % fig_dir_rel)
     w("")
@@ -535,7 +563,7 @@ def write_report(res, runs, args, elapsed, bench_text, docs_dir, fig_dir_rel):
         w("### %s" % scene.replace("_", " "))
         w("")
         w(TABLE_HEAD)
-        for f in FILTERS:
+        for f in THESIS_FILTERS + FILTERS:
             for n in COUNTS:
                 row = table_row(res, scene, f, n)
                 if row:
@@ -565,7 +593,8 @@ def write_report(res, runs, args, elapsed, bench_text, docs_dir, fig_dir_rel):
         w("### %s" % scene.replace("_", " "))
         w("")
         w(TABLE_HEAD)
-        labels = FILTERS + [c[0] for c in CONFIGS] + ([THREE_CUES[0]] if scene in CUE_SCENES else []) + BASELINES
+        labels = (THESIS_FILTERS + FILTERS + [c[0] for c in CONFIGS] +
+                  ([c[0] for c in THREE_CUES] if scene in CUE_SCENES else []) + BASELINES)
         for label in labels:
             row = table_row(res, scene, label, baseline_n(label))
             if row:
@@ -575,7 +604,7 @@ def write_report(res, runs, args, elapsed, bench_text, docs_dir, fig_dir_rel):
             w("| filter | runs declaring the track lost while hidden | re-acquire frames after reappearing: mean "
               "/ worst |")
             w("|---|---|---|")
-            for label in FILTERS + [c[0] for c in CONFIGS] + BASELINES:
+            for label in THESIS_FILTERS + FILTERS + [c[0] for c in CONFIGS] + BASELINES:
                 n = baseline_n(label)
                 lost = res.summary(scene, label, n, "declared_lost")
                 re = [x for x in res.summary(scene, label, n, "reacquire_frames") if x >= 0]
@@ -604,28 +633,39 @@ def write_report(res, runs, args, elapsed, bench_text, docs_dir, fig_dir_rel):
 
 
 def discussion(res):
-    """Sentences whose verdicts are computed from this run, so they stay true when it is regenerated."""
+    """Sentences whose verdicts are computed from this run, so they stay true when it is regenerated. The
+    thesis's findings are checked with its colour model (a faithful reproduction) and with the default cues."""
     s = []
-    for scene in SWEEP_SCENES:
-        name = scene.replace("_", " ")
-        faster = [n for n in COUNTS if res.converged(scene, "StereoConstraints", n)[0] and
-                  res.converged(scene, "Position3D", n)[0] and
-                  np.mean(res.converged(scene, "StereoConstraints", n)[0]) <
-                  np.mean(res.converged(scene, "Position3D", n)[0])]
-        tested = [n for n in COUNTS if res.get(scene, "StereoConstraints", n) and res.get(scene, "Position3D", n)]
-        s.append("- *SC homes in faster* (%s): SC converged sooner on average at %d of %d particle counts (%s)." % (
-            name, len(faster), len(tested), ", ".join(str(n) for n in faster) or "none"))
-        better = [n for n in tested if stats(res.rms(scene, "Position3D", n))[0] <
-                  stats(res.rms(scene, "StereoConstraints", n))[0]]
-        z = lambda f, n: np.mean([r.summary["rms_xyz_cm"][2] for r in res.get(scene, f, n) if "rms_xyz_cm" in r.summary])
-        zb = [n for n in tested if z("Position3D", n) < z("StereoConstraints", n)]
-        s.append("- *3D is more precise once converged, especially in z* (%s): 3D's RMS after convergence is lower "
-                 "than SC's at %d of %d counts, its z RMS at %d of %d." % (name, len(better), len(tested), len(zb),
-                                                                          len(tested)))
-        for f in FILTERS:
-            a, b = stats(res.rms(scene, f, COUNTS[0]))[0], stats(res.rms(scene, f, COUNTS[-1]))[0]
-            s.append("- *More particles, more precision* (%s, %s): RMS after convergence %s cm at %d, %s cm at %d."
-                     % (name, SHORT[f], fmt(a), COUNTS[0], fmt(b), COUNTS[-1]))
+    for suffix, cues in ((THESIS, "thesis's colour model"), ("", "default cues")):
+        sc, p3 = "StereoConstraints" + suffix, "Position3D" + suffix
+        for scene in SWEEP_SCENES:
+            name = "%s, %s" % (scene.replace("_", " "), cues)
+            tested = [n for n in COUNTS if res.get(scene, sc, n) and res.get(scene, p3, n)]
+            faster = [n for n in tested if res.converged(scene, sc, n)[0] and res.converged(scene, p3, n)[0] and
+                      np.mean(res.converged(scene, sc, n)[0]) < np.mean(res.converged(scene, p3, n)[0])]
+            s.append("- *SC homes in faster* (%s): SC converged sooner on average at %d of %d particle counts (%s)."
+                     % (name, len(faster), len(tested), ", ".join(str(n) for n in faster) or "none"))
+            better = [n for n in tested if stats(res.rms(scene, p3, n))[0] < stats(res.rms(scene, sc, n))[0]]
+            z = lambda f, n: np.mean([r.summary["rms_xyz_cm"][2] for r in res.get(scene, f, n)
+                                      if "rms_xyz_cm" in r.summary])
+            zb = [n for n in tested if z(p3, n) < z(sc, n)]
+            s.append("- *3D is more precise once converged, especially in z* (%s): 3D's RMS after convergence is "
+                     "lower than SC's at %d of %d counts, its z RMS at %d of %d." % (
+                         name, len(better), len(tested), len(zb), len(tested)))
+            for f in FILTERS:
+                a, b = stats(res.rms(scene, f + suffix, COUNTS[0]))[0], stats(res.rms(scene, f + suffix, COUNTS[-1]))[0]
+                s.append("- *More particles, more precision* (%s, %s): RMS after convergence %s cm at %d, %s cm at "
+                         "%d." % (name, SHORT[f], fmt(a), COUNTS[0], fmt(b), COUNTS[-1]))
+    s.append("")
+    s.append("Why 3D need not beat SC here: the thesis's 3D filter gained over SC because it enforces the epipolar "
+             "geometry exactly and knows the ball's apparent size at each depth. Our SC hypotheses also take the "
+             "apparent radius at the depth both sets agree on (a departure from the thesis's fixed 11x11 window), "
+             "and each of its sets samples a 2D image position with N particles where the 3D filter spreads N "
+             "particles over three dimensions, so per image SC's centres are sampled more densely. Depth comes "
+             "from the disparity of those centres in both filters, so z dominates both filters' error, and the "
+             "denser 2D sampling is the likely reason SC's is lower. SC's weakness shows elsewhere: in clutter some of its runs lock onto a "
+             "static patch of the target's colour and never converge (the 'never' counts in the cluttered tables), "
+             "which the 3D filter's single set, observed in both images at once, avoids.")
     return "\n".join(s)
 
 
