@@ -443,25 +443,13 @@ void ColourContour::saveTarget(cv::FileStorage& fs) const
 
 bool ColourContour::loadTarget(const cv::FileNode& node, std::string& error)
 {
-  cv::FileNode m = node;
-  if (m.isMap() && m["histogram"].empty())
-    m = node[name()];
-  if (m.empty() || !m.isMap())
-  {
-    error = name() + ": no colour-outline target named '" + name() + "' in the file";
+  const cv::FileNode m = targetNode(node, name(), "colour-outline target", error);
+  if (m.empty())
     return false;
-  }
-  HsiBinning stored;
   std::string reason;
-  if (!HsiBinning::read(m, stored, reason))
+  if (!binning_.matches(m, reason))
   {
-    error = name() + ": colour-outline target " + reason;
-    return false;
-  }
-  if (!stored.sameAs(binning_))
-  {
-    error = name() + ": the target was learned with HSI binning " + stored.describe() + " but this model is " +
-            "configured with " + binning_.describe() + "; relearn the target or set the same binning";
+    error = name() + ": " + reason;
     return false;
   }
   std::vector<double> histogram, background;

@@ -231,10 +231,9 @@ void ColourHSI::saveTarget(cv::FileStorage& fs) const
 {
   if (!target_.valid())
     return;
-  const HsiBinning& b = binning_;
   fs << name() << "{";
   fs << "type" << "stereo_pf/ColourHSI";
-  b.write(fs);
+  binning_.write(fs);
   fs << "histogram" << target_.probabilities();
   fs << "learned_radius" << static_cast<double>(learned_radius_);  // the 2D hypotheses' surround ring
   fs << "}";
@@ -242,27 +241,13 @@ void ColourHSI::saveTarget(cv::FileStorage& fs) const
 
 bool ColourHSI::loadTarget(const cv::FileNode& node, std::string& error)
 {
-  // Accept the map itself or its parent (the file root).
-  cv::FileNode m = node;
-  if (m.isMap() && m["histogram"].empty())
-    m = node[name()];
-  if (m.empty() || !m.isMap())
-  {
-    error = name() + ": no colour target named '" + name() + "' in the file";
+  const cv::FileNode m = targetNode(node, name(), "colour target", error);
+  if (m.empty())
     return false;
-  }
-  HsiBinning stored;
   std::string reason;
-  if (!HsiBinning::read(m, stored, reason))
+  if (!binning_.matches(m, reason))
   {
-    error = name() + ": colour target " + reason;
-    return false;
-  }
-  if (!stored.sameAs(binning_))
-  {
-    error = name() + ": the colour target was learned with HSI binning " + stored.describe() +
-            " (hue x saturation x intensity / achromatic thresholds) but this model is configured with " +
-            binning_.describe() + "; relearn the target or set the same binning";
+    error = name() + ": " + reason;
     return false;
   }
   if (!m["histogram"].isSeq())
@@ -272,10 +257,10 @@ bool ColourHSI::loadTarget(const cv::FileNode& node, std::string& error)
   }
   std::vector<double> hist;
   m["histogram"] >> hist;
-  if (static_cast<int>(hist.size()) != stored.bins())
+  if (static_cast<int>(hist.size()) != binning_.bins())
   {
     error = name() + ": colour target histogram has " + std::to_string(hist.size()) + " entries, expected " +
-            std::to_string(stored.bins());
+            std::to_string(binning_.bins());
     return false;
   }
   try

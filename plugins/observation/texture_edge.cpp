@@ -384,15 +384,9 @@ void TextureEdge::saveTarget(cv::FileStorage& fs) const
 
 bool TextureEdge::loadTarget(const cv::FileNode& node, std::string& error)
 {
-  // Accept the map itself or its parent (the file root).
-  cv::FileNode m = node;
-  if (m.isMap() && m["histogram"].empty())
-    m = node[name()];
-  if (m.empty() || !m.isMap())
-  {
-    error = name() + ": no texture target named '" + name() + "' in the file";
+  const cv::FileNode m = targetNode(node, name(), "texture target", error);
+  if (m.empty())
     return false;
-  }
   if (!m["mode"].isString())
   {
     error = name() + ": texture target lacks its 'mode' (intensity or orientation)";

@@ -119,6 +119,25 @@ bool HsiBinning::read(const cv::FileNode& m, HsiBinning& b, std::string& error)
   return true;
 }
 
+bool HsiBinning::matches(const cv::FileNode& node, std::string& error) const
+{
+  HsiBinning stored;
+  std::string reason;
+  if (!read(node, stored, reason))
+  {
+    error = "the target " + reason;
+    return false;
+  }
+  if (!stored.sameAs(*this))
+  {
+    error = "the target was learned with HSI binning " + stored.describe() +
+            " (hue x saturation x intensity / achromatic thresholds) but this model is configured with " +
+            describe() + "; relearn the target or set the same binning";
+    return false;
+  }
+  return true;
+}
+
 bool HsiBinning::sameAs(const HsiBinning& other) const
 {
   return hue_bins == other.hue_bins && saturation_bins == other.saturation_bins &&

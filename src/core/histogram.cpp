@@ -161,6 +161,21 @@ double SparseHistogram::scoreAndClear(const TargetHistogram& target)
   return rho;
 }
 
+cv::FileNode targetNode(const cv::FileNode& node, const std::string& name, const std::string& what,
+                        std::string& error)
+{
+  // Accept the map itself or its parent (the file root).
+  cv::FileNode m = node;
+  if (m.isMap() && m["histogram"].empty())
+    m = node[name];
+  if (m.empty() || !m.isMap())
+  {
+    error = name + ": no " + what + " named '" + name + "' in the file";
+    return cv::FileNode();
+  }
+  return m;
+}
+
 std::string describeRect(const cv::Rect& r)
 {
   return std::to_string(r.width) + "x" + std::to_string(r.height) + " at (" + std::to_string(r.x) + ", " +

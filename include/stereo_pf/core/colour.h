@@ -66,6 +66,9 @@ struct HsiBinning
   void write(cv::FileStorage& fs) const;
   /// Read them back from a map written by write(); false with `error` naming the missing key.
   static bool read(const cv::FileNode& node, HsiBinning& binning, std::string& error);
+  /// Read the binning stored in a target map and check that it is this one; false with `error` saying which
+  /// key is missing, or both binnings (a target learned with another binning means nothing here).
+  bool matches(const cv::FileNode& node, std::string& error) const;
 };
 
 /// Maps BGR pixels to HSI bin indices through a lookup table on 6-bit-per-channel colour

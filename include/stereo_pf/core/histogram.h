@@ -46,6 +46,13 @@ bool targetRegion(const cv::Size& image_size, const cv::Rect& roi, double margin
 /// "WxH at (x, y)", for messages about regions.
 std::string describeRect(const cv::Rect& r);
 
+/// The map of one cue's saved target in a target file: `node` itself when it is a map holding a "histogram"
+/// (every histogram cue saves one), else its child `name`. `what` names the target in the error ("colour
+/// target", ...); on failure `error` reads "<name>: no <what> named '<name>' in the file" and the result is
+/// empty.
+cv::FileNode targetNode(const cv::FileNode& node, const std::string& name, const std::string& what,
+                        std::string& error);
+
 /// Bhattacharyya coefficient rho = sum_u sqrt(p_u q_u) of two normalised histograms (eq. 5.3), clamped to
 /// [0, 1]. Throws std::invalid_argument when the sizes differ.
 double bhattacharyya(const std::vector<double>& p, const std::vector<double>& q);
