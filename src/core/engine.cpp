@@ -406,10 +406,10 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
   // luckiest one). While tracking, and when other cues run too, they come second (progressive correction):
   // the other cues weigh the set, it is resampled and jittered over the region they allow, and only then do
   // the refining cues weigh it. They are not part of the evidence: the other cues say what is seen.
-  // While searching or lost there is no region to refine: refining cues then weigh in with the others, their
-  // weight tempered by refine_search_weight (0: skipped), so an outline still helps tell the object from
-  // clutter of its colour. A refining cue alone could never find the object: without another enabled cue it
-  // is an ordinary one.
+  // While searching or lost there is no region to refine: refining cues then weigh in with the others at
+  // their weight times refine_search_weight (default 0: skipped; an outline of the target's colour is found on
+  // clutter of that colour too). A refining cue alone could never find the object: without another enabled
+  // cue it is an ordinary one.
   const bool tracking = state_ == TrackState::Tracking;
   const bool others = std::any_of(observation_models_.begin(), observation_models_.end(),
                                   [](const std::shared_ptr<ObservationModel>& m) { return m->enabled() && !m->refine(); });
