@@ -607,9 +607,15 @@ def write_report(res, runs, args, elapsed, bench_text, docs_dir, fig_dir_rel):
             for label in THESIS_FILTERS + FILTERS + [c[0] for c in CONFIGS] + BASELINES:
                 n = baseline_n(label)
                 lost = res.summary(scene, label, n, "declared_lost")
-                re = [x for x in res.summary(scene, label, n, "reacquire_frames") if x >= 0]
+                # track_bag writes a huge count for a run that never re-acquired (its summary's sentinel).
+                all_re = [x for x in res.summary(scene, label, n, "reacquire_frames") if x >= 0]
+                re = [x for x in all_re if x < 1e5]
+                never = len(all_re) - len(re)
+                text = ("%.1f / %d" % (np.mean(re), max(re))) if re else "-"
+                if never:
+                    text = ("%s, " % text if re else "") + "never in %d/%d" % (never, len(all_re))
                 w("| %s | %s | %s |" % (label, ("%d/%d" % (sum(lost), len(res.get(scene, label, n)))) if lost else
-                                        "- (never converged)", ("%.1f / %d" % (np.mean(re), max(re))) if re else "-"))
+                                        "- (never converged)", text))
         w("")
 
     # Discussion
