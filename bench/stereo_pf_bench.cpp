@@ -117,7 +117,7 @@ std::shared_ptr<Model> makeModel(const std::string& name, const Parameters& para
   return model;
 }
 
-// The three cues with the weights of config/multi_cue.yaml (the weights do not change the cost).
+// The cues with the settings of config/multi_cue.yaml (the weights do not change the cost; the shape's 8 lines do).
 std::shared_ptr<ObservationModel> colourCue()
 {
   return makeModel<ColourHSI>("colour");
@@ -136,6 +136,7 @@ std::shared_ptr<ObservationModel> shapeCue()
 {
   Parameters p;
   p.set("weight", 0.2);
+  p.set("lines", 8);
   return makeModel<ShapeCircle>("shape", p);
 }
 
