@@ -80,7 +80,8 @@ public:
   /// sharper than a particle cloud spread by the dynamics can sample (a sub-pixel outline, a disparity). While
   /// tracking, the engine applies refining cues after the others, on the set resampled and jittered over the
   /// region the others allow (EngineConfig::refine_jitter), and leaves them out of the evidence; while
-  /// searching or lost it skips them. Without any other enabled cue a refining cue is an ordinary one.
+  /// searching or lost it skips them (or tempers them: EngineConfig::refine_search_weight). Without any other
+  /// enabled cue a refining cue is an ordinary one.
   bool refine() const { return refine_; }
 
 protected:
