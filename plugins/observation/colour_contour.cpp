@@ -152,18 +152,12 @@ void ColourContour::setTarget(TargetHistogram target, TargetHistogram background
 bool ColourContour::learnTarget(FeatureCache& cache, View view, const cv::Rect& roi, std::string& error)
 {
   const cv::Mat& image = cache.image(view);
-  cv::Rect inner;
+  const cv::Mat& bins = binner_->cachedBins(cache, view, 0, image.rows);
+  TargetHistogram target;
   std::string reason;
-  if (!targetRegion(image.size(), roi, tunables_.target_margin, inner, reason))
+  if (!learnTargetHistogram(bins, roi, tunables_.target_margin, binning_.bins(), target, reason))
   {
     error = name() + ": cannot learn the target: " + reason;
-    return false;
-  }
-  const cv::Mat& bins = binner_->cachedBins(cache, view, 0, image.rows);
-  TargetHistogram target = TargetHistogram::fromBinImage(bins, inner, binning_.bins());
-  if (!target.valid())
-  {
-    error = name() + ": cannot learn the target: no pixel of " + describeRect(inner) + " could be binned";
     return false;
   }
   // The background: every pixel outside the grown region (OpenCV's histogram of the bin image under a mask).

@@ -290,20 +290,12 @@ const cv::Mat& TextureEdge::binImage(FeatureCache& cache, View view, int y0, int
 
 bool TextureEdge::learnTarget(FeatureCache& cache, View view, const cv::Rect& roi, std::string& error)
 {
-  cv::Rect inner;
   std::string reason;
-  if (!targetRegion(cache.image(view).size(), roi, tunables_.target_margin, inner, reason))
+  if (!learnTargetHistogram(binImage(cache, view), roi, tunables_.target_margin, binning_.bins(), target_, reason))
   {
     error = name() + ": cannot learn the target: " + reason;
     return false;
   }
-  TargetHistogram t = TargetHistogram::fromBinImage(binImage(cache, view), inner, binning_.bins());
-  if (!t.valid())
-  {
-    error = name() + ": cannot learn the target: no pixel of " + describeRect(inner) + " could be binned";
-    return false;
-  }
-  target_ = std::move(t);
   return true;
 }
 

@@ -161,6 +161,22 @@ double SparseHistogram::scoreAndClear(const TargetHistogram& target)
   return rho;
 }
 
+bool learnTargetHistogram(const cv::Mat& bin_image, const cv::Rect& roi, double margin, int bins,
+                          TargetHistogram& target, std::string& reason)
+{
+  cv::Rect inner;
+  if (!targetRegion(bin_image.size(), roi, margin, inner, reason))
+    return false;
+  TargetHistogram t = TargetHistogram::fromBinImage(bin_image, inner, bins);
+  if (!t.valid())
+  {
+    reason = "no pixel of " + describeRect(inner) + " could be binned";
+    return false;
+  }
+  target = std::move(t);
+  return true;
+}
+
 cv::FileNode targetNode(const cv::FileNode& node, const std::string& name, const std::string& what,
                         std::string& error)
 {

@@ -46,6 +46,12 @@ bool targetRegion(const cv::Size& image_size, const cv::Rect& roi, double margin
 /// "WxH at (x, y)", for messages about regions.
 std::string describeRect(const cv::Rect& r);
 
+/// A cue's target histogram: of `bin_image` (`bins` bins) over targetRegion(roi, margin). False with `reason`
+/// (targetRegion's, or "no pixel of <inner> could be binned") when the region is unusable or holds no pixel of
+/// a bin; `target` is then unchanged.
+bool learnTargetHistogram(const cv::Mat& bin_image, const cv::Rect& roi, double margin, int bins,
+                          TargetHistogram& target, std::string& reason);
+
 /// The map of one cue's saved target in a target file: `node` itself when it is a map holding a "histogram"
 /// (every histogram cue saves one), else its child `name`. `what` names the target in the error ("colour
 /// target", ...); on failure `error` reads "<name>: no <what> named '<name>' in the file" and the result is
