@@ -1,5 +1,6 @@
 // Synthetic stereo scenes: YAML loading and a per-pixel ray-casting renderer (see scene.h).
 #include "stereo_pf/core/scene.h"
+#include "stereo_pf/core/scene_sensor.h"
 
 #include <algorithm>
 #include <cmath>
@@ -552,6 +553,17 @@ std::string SceneDescription::validate() const
   check(frames > 0, "frames must be > 0");
   check(target_roi_frame >= 0 && target_roi_frame < frames, "target_roi_frame must be in [0, frames)");
   check(noise_sigma >= 0.0, "noise.sigma must be >= 0");
+  check(noise_shot >= 0.0 && noise_shot <= 10.0, "noise.shot must be in [0, 10]");
+  check(camera.row_offset >= -5.0 && camera.row_offset <= 5.0, "camera.row_offset must be in [-5, 5]");
+  const std::string sensor_problems = sensor.validate();
+  check(sensor_problems.empty(), sensor_problems);
+  // A camera cannot expose one frame for longer than the time between two frames.
+  if (sensor.exposure > 1.0 / fps + 1e-12)
+  {
+    std::ostringstream s;
+    s << "sensor.exposure must not exceed the frame period 1/fps = " << 1.0 / fps << " s, got " << sensor.exposure;
+    check(false, s.str());
+  }
   check(min_visible_fraction >= 0.0 && min_visible_fraction <= 1.0, "min_visible_fraction must be in [0, 1]");
   check(light.ambient >= 0.0 && light.ambient <= 1.0, "light.ambient must be in [0, 1]");
   check(light.direction.norm() > 1e-9, "light.direction must not be zero");
@@ -622,7 +634,7 @@ SceneDescription loadScene(const std::string& path)
   const cv::FileNode root = fs.root();
   r.checkKeys(root, "",
               { "name", "fps", "frames", "duration", "target_roi_frame", "min_visible_fraction", "camera", "light",
-                "noise", "background", "objects", "occluders" });
+                "noise", "sensor", "background", "objects", "occluders" });
 
   SceneDescription d;
   d.source = path;
@@ -641,7 +653,7 @@ SceneDescription loadScene(const std::string& path)
   if (SceneReader::has(root, "camera"))
   {
     const cv::FileNode n = root["camera"];
-    r.checkKeys(n, "camera", { "width", "height", "fx", "fy", "cx", "cy", "baseline" });
+    r.checkKeys(n, "camera", { "width", "height", "fx", "fy", "cx", "cy", "baseline", "row_offset" });
     SceneCamera& c = d.camera;
     c.width = r.integer(n, "camera", "width", c.width, 1, 100000);
     c.height = r.integer(n, "camera", "height", c.height, 1, 100000);
@@ -650,6 +662,7 @@ SceneDescription loadScene(const std::string& path)
     c.cx = r.number(n, "camera", "cx", (c.width - 1) / 2.0, -1e6, 1e6);
     c.cy = r.number(n, "camera", "cy", (c.height - 1) / 2.0, -1e6, 1e6);
     c.baseline = r.number(n, "camera", "baseline", c.baseline, 1e-6, 100.0);
+    c.row_offset = r.number(n, "camera", "row_offset", c.row_offset, -5.0, 5.0);
   }
 
   if (SceneReader::has(root, "light"))
@@ -665,9 +678,32 @@ SceneDescription loadScene(const std::string& path)
   if (SceneReader::has(root, "noise"))
   {
     const cv::FileNode n = root["noise"];
-    r.checkKeys(n, "noise", { "sigma", "seed" });
+    r.checkKeys(n, "noise", { "sigma", "seed", "shot" });
     d.noise_sigma = r.number(n, "noise", "sigma", d.noise_sigma, 0.0, 255.0);
+    d.noise_shot = r.number(n, "noise", "shot", d.noise_shot, 0.0, 10.0);
     d.seed = static_cast<uint64_t>(r.integer(n, "noise", "seed", 0, 0, 2147483647));
+  }
+
+  if (SceneReader::has(root, "sensor"))
+  {
+    const cv::FileNode n = root["sensor"];
+    r.checkKeys(n, "sensor",
+                { "exposure", "blur_samples", "vignetting", "gain_jitter", "right_gain", "right_gain_jitter",
+                  "jpeg_quality", "encoding", "camera_info" });
+    SceneSensor& s = d.sensor;
+    s.exposure = r.number(n, "sensor", "exposure", s.exposure, 0.0, 1.0);
+    s.blur_samples = r.integer(n, "sensor", "blur_samples", s.blur_samples, 0, 64);
+    s.vignetting = r.number(n, "sensor", "vignetting", s.vignetting, 0.0, 0.9);
+    s.gain_jitter = r.number(n, "sensor", "gain_jitter", s.gain_jitter, 0.0, 0.5);
+    s.right_gain = r.number(n, "sensor", "right_gain", s.right_gain, 0.5, 2.0);
+    s.right_gain_jitter = r.number(n, "sensor", "right_gain_jitter", s.right_gain_jitter, 0.0, 0.5);
+    s.jpeg_quality = r.integer(n, "sensor", "jpeg_quality", s.jpeg_quality, 0, 100);
+    const std::string encoding =
+        r.text(n, "sensor", "encoding", "bgr8", { "bgr8", "rgb8", "mono8", "mono16", "bayer_grbg8" });
+    encodingFromName(encoding, s.encoding);
+    s.camera_info = r.text(n, "sensor", "camera_info", "full", { "full", "size_only" }) == "size_only" ?
+                        SceneCameraInfo::SizeOnly :
+                        SceneCameraInfo::Full;
   }
 
   if (SceneReader::has(root, "background"))
@@ -762,11 +798,26 @@ SceneDescription loadScene(const std::string& path)
 // --------------------------------------------------------------------------------------------------
 // Rendering
 
-SceneRenderer::SceneRenderer(const SceneDescription& scene) : scene_(scene)
+namespace
 {
-  const std::string problems = scene_.validate();
+// Validate before any member is built from the description (the sensor model sizes buffers from it).
+const SceneDescription& checked(const SceneDescription& scene)
+{
+  const std::string problems = scene.validate();
   if (!problems.empty())
-    throw SceneError("scene '" + scene_.name + "' cannot be rendered: " + problems);
+    throw SceneError("scene '" + scene.name + "' cannot be rendered: " + problems);
+  return scene;
+}
+}  // namespace
+
+SceneRenderer::SceneRenderer(const SceneDescription& scene)
+  : scene_(checked(scene))
+  , sensor_(scene.sensor, scene.noise_sigma, scene.noise_shot, scene.seed,
+            cv::Size(scene.camera.width, scene.camera.height), scene.camera.cx, scene.camera.cy)
+{
+  // Rays through row v - row_offset of the ideal right camera put its content row_offset rows lower.
+  imaging_[0] = imaging_[1] = scene_.camera;
+  imaging_[1].cy += scene_.camera.row_offset;
   light_ = scene_.light.direction.normalized();
   renderBackdrop();
 }
@@ -912,10 +963,11 @@ void SceneRenderer::renderBackdrop()
   for (int v = 0; v < 2; ++v)
   {
     const double ox = v == 0 ? 0.0 : cam.baseline;
+    const double cy = imaging_[v].cy;  // the right camera's rows may be offset (camera.row_offset)
     cv::Mat map_x(cam.height, cam.width, CV_32F), map_y(cam.height, cam.width, CV_32F);
     for (int row = 0; row < cam.height; ++row)
     {
-      const float ty = static_cast<float>(((row - cam.cy) / cam.fy * depth - y_min) / texel);
+      const float ty = static_cast<float>(((row - cy) / cam.fy * depth - y_min) / texel);
       float* mx = map_x.ptr<float>(row);
       float* my = map_y.ptr<float>(row);
       for (int col = 0; col < cam.width; ++col)
@@ -934,9 +986,8 @@ void SceneRenderer::render(int k, cv::Mat& left_bgr, cv::Mat& right_bgr, bool wi
   renderView(k, View::Right, right_bgr, with_noise);
 }
 
-void SceneRenderer::renderView(int k, View view, cv::Mat& bgr, bool with_noise)
+void SceneRenderer::drawScene(double t, View view, cv::Mat& bgr)
 {
-  const double t = stamp(k);
   const int v = static_cast<int>(view);
   backdrop_[v].copyTo(bgr);
   backdrop_depth_[v].copyTo(depth_);
@@ -954,13 +1005,11 @@ void SceneRenderer::renderView(int k, View view, cv::Mat& bgr, bool with_noise)
   for (const SceneSphere& s : scene_.objects)
     if (s.draw_string && s.trajectory.present(t))
       drawString(s, t, view, bgr, depth_);
-  if (with_noise && scene_.noise_sigma > 0.0)
-    addNoise(k, view, bgr);
 }
 
 void SceneRenderer::drawOccluders(double t, View view, cv::Mat& img, cv::Mat& depth) const
 {
-  const SceneCamera& cam = scene_.camera;
+  const SceneCamera& cam = imagingCamera(view);
   const Eigen::Vector3d origin = cameraOrigin(view);
   for (const SceneOccluder& o : scene_.occluders)
   {
@@ -1002,7 +1051,7 @@ void SceneRenderer::drawOccluders(double t, View view, cv::Mat& img, cv::Mat& de
 
 void SceneRenderer::drawSphere(const SceneSphere& s, double t, View view, cv::Mat& img, cv::Mat& depth) const
 {
-  const SceneCamera& cam = scene_.camera;
+  const SceneCamera& cam = imagingCamera(view);
   const Eigen::Vector3d centre = s.trajectory.at(t);
   const Eigen::Vector3d origin = cameraOrigin(view);
   const Eigen::Vector3d c = centre - origin;  // centre seen from this camera
@@ -1066,7 +1115,7 @@ void SceneRenderer::drawSphere(const SceneSphere& s, double t, View view, cv::Ma
 
 void SceneRenderer::drawSquare(const SceneSphere& s, double t, View view, cv::Mat& img, cv::Mat& depth) const
 {
-  const SceneCamera& cam = scene_.camera;
+  const SceneCamera& cam = imagingCamera(view);
   const Eigen::Vector3d c = s.trajectory.at(t) - cameraOrigin(view);
   PixelBox box;
   if (!squareBox(cam, c, s.radius, box))
@@ -1116,7 +1165,7 @@ void SceneRenderer::drawString(const SceneSphere& s, double t, View view, cv::Ma
 {
   if (s.trajectory.type != Trajectory::Type::Pendulum)
     return;
-  const SceneCamera& cam = scene_.camera;
+  const SceneCamera& cam = imagingCamera(view);
   const Eigen::Vector3d origin = cameraOrigin(view);
   const Eigen::Vector3d a = s.trajectory.pivot - origin;
   const Eigen::Vector3d b = s.trajectory.at(t) - origin;
@@ -1137,15 +1186,6 @@ void SceneRenderer::drawString(const SceneSphere& s, double t, View view, cv::Ma
     if (static_cast<float>(p.z()) < depth.at<float>(row, col))
       img.at<cv::Vec3b>(row, col) = dark;
   }
-}
-
-void SceneRenderer::addNoise(int k, View view, cv::Mat& img)
-{
-  // One RNG state per (seed, frame, view): frames can be rendered in any order with identical results.
-  cv::RNG rng(mix64(scene_.seed ^ mix64(static_cast<uint64_t>(k) * 2 + static_cast<uint64_t>(view) + 1)));
-  noise_.create(img.rows, img.cols, CV_16SC3);
-  rng.fill(noise_, cv::RNG::NORMAL, cv::Scalar::all(0), cv::Scalar::all(scene_.noise_sigma));
-  cv::add(img, noise_, img, cv::noArray(), CV_8U);
 }
 
 // --------------------------------------------------------------------------------------------------

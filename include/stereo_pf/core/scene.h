@@ -12,6 +12,7 @@
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
+#include "stereo_pf/core/scene_sensor.h"
 #include "stereo_pf/core/stereo_geometry.h"
 
 namespace stereo_pf
@@ -34,6 +35,9 @@ struct SceneCamera
   double cx = 319.5;        ///< principal point column; loadScene() defaults it to the image centre (width - 1) / 2
   double cy = 239.5;        ///< principal point row; loadScene() defaults it to the image centre (height - 1) / 2
   double baseline = 0.09;   ///< distance between the optical centres, metres
+  /// Rectification residual, pixels, [-5, 5]: the right image's content sits this many rows lower than
+  /// the ideal rectified pair puts it (the calibration and ground truth stay the ideal ones).
+  double row_offset = 0.0;
 };
 
 /// Where an object is over time, and when it exists at all. Positions are in the left optical frame
@@ -166,6 +170,8 @@ struct SceneDescription
   double fps = 30.0;                     ///< frame rate, Hz
   int frames = 300;                      ///< number of stereo frames
   double noise_sigma = 2.0;              ///< Gaussian sensor noise, grey levels, independent per pixel/channel/image
+  double noise_shot = 0.0;               ///< shot noise, [0, 10]: variance noise_sigma^2 + noise_shot * I (grey levels)
+  SceneSensor sensor;                    ///< exposure, vignetting, gains, JPEG, published encoding (scene_sensor.h)
   uint64_t seed = 0;                     ///< sensor noise seed
   int target_roi_frame = 0;              ///< frame whose target bounding box teaches the tracker the target
   /// The target counts as visible when at least this fraction of its disc shows in both images.
@@ -201,11 +207,17 @@ public:
   /// Calibration of the rectified pair.
   StereoGeometry geometry() const { return scene_.geometry(); }
 
-  /// Render frame k into CV_8UC3 BGR images (reallocated only when needed). Noise is added unless
-  /// `with_noise` is false (useful for checking colours exactly).
+  /// Render frame k into CV_8UC3 BGR images (reallocated only when needed), through the scene's sensor
+  /// (motion blur, vignetting, gains, noise, JPEG: SceneSensorModel). The per-pixel noise is added unless
+  /// `with_noise` is false (useful for checking colours exactly); the other sensor effects always apply.
   void render(int k, cv::Mat& left_bgr, cv::Mat& right_bgr, bool with_noise = true);
   /// Render one view of frame k.
   void renderView(int k, View view, cv::Mat& bgr, bool with_noise = true);
+  /// Renders averaged over frame k's exposure: sensor.blur_samples, or when that is 0 enough that no
+  /// object moves more than about a pixel between two of them (at most 16); 1 without exposure.
+  int blurSamples(int k) const;
+  /// The sensor model applied after rendering (gains, vignetting factors).
+  const SceneSensorModel& sensorModel() const { return sensor_; }
 
   /// Centre of object i at frame k, left optical frame, metres.
   Eigen::Vector3d objectPosition(size_t i, int k) const;
@@ -227,6 +239,11 @@ public:
   cv::Rect targetRoi(int k) const { return objectRoi(0, k, View::Left); }
 
 private:
+  /// The light reaching `view` at time t (no sensor effects): backdrop, occluders, objects, strings.
+  void drawScene(double t, View view, cv::Mat& bgr);
+  /// The camera whose rays render `view`: the ideal one, with the right camera's principal point moved
+  /// down by camera.row_offset (ground truth and geometry() keep the ideal camera).
+  const SceneCamera& imagingCamera(View view) const { return imaging_[static_cast<int>(view)]; }
   /// Paint the background plane once and resample it into each camera (backdrop_, backdrop_depth_).
   void renderBackdrop();
   /// Draw the occluders present at time t, depth-tested against and writing into `depth`.
@@ -237,8 +254,6 @@ private:
   void drawSquare(const SceneSphere& s, double t, View view, cv::Mat& img, cv::Mat& depth) const;
   /// Draw a pendulum ball's string as depth-tested samples of the 3D segment pivot-centre.
   void drawString(const SceneSphere& s, double t, View view, cv::Mat& img, const cv::Mat& depth) const;
-  /// Add Gaussian noise seeded from (seed, k, view).
-  void addNoise(int k, View view, cv::Mat& img);
   /// Ray parameter of the nearest surface other than object i (other balls, occluders, background).
   double nearestOtherHit(size_t i, double t, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir) const;
   /// Optical centre of a camera in the left optical frame.
@@ -249,7 +264,10 @@ private:
   cv::Mat backdrop_[2];             ///< static background per view, CV_8UC3
   cv::Mat backdrop_depth_[2];       ///< its depth per view, CV_32F
   cv::Mat depth_;                   ///< per-frame depth scratch buffer, CV_32F
-  cv::Mat noise_;                   ///< per-frame noise scratch buffer, CV_16SC3
+  SceneCamera imaging_[2];          ///< per view: the camera its rays are cast from (see imagingCamera())
+  SceneSensorModel sensor_;         ///< everything after the light reaches the sensor
+  cv::Mat sub_frame_;               ///< one render of a motion-blurred exposure, CV_8UC3
+  cv::Mat exposure_sum_;            ///< their mean, CV_32FC3
 };
 
 }  // namespace stereo_pf
