@@ -189,29 +189,39 @@ TEST(SceneSensorDefaults, ShippedSceneRendersAsBefore)
 
 TEST(SceneSensorRowOffset, MovesTheRightImageContentDownByThatManyRows)
 {
-  const SceneDescription base = smallScene(0.02, -0.03);
-  SceneRenderer ideal(base);
-  cv::Mat l0, r0;
-  ideal.render(0, l0, r0, false);
-  const cv::Point2d cl0 = centroid(l0, base.background.colour), cr0 = centroid(r0, base.background.colour);
-
-  for (double offset : { 0.5, -1.25, 2.3, 5.0 })
+  // Every shape is drawn through the right view's imaging camera, so every shape moves.
+  using Shape = stereo_pf::SceneSphere::Shape;
+  for (const Shape shape : { Shape::Sphere, Shape::Box, Shape::Cylinder })
   {
-    SCOPED_TRACE(offset);
-    SceneDescription d = base;
-    d.camera.row_offset = offset;
-    SceneRenderer r(d);
-    cv::Mat l, rt;
-    r.render(0, l, rt, false);
-    EXPECT_EQ(cv::norm(l, l0, cv::NORM_INF), 0.0) << "the left image must not change";
-    const cv::Point2d cl = centroid(l, d.background.colour), cr = centroid(rt, d.background.colour);
-    EXPECT_NEAR(cl.y, cl0.y, 1e-9);
-    EXPECT_NEAR(cr.y - cr0.y, offset, 0.03);
-    EXPECT_NEAR(cr.x, cr0.x, 0.03);
-    // Ground truth and calibration stay the ideal ones.
-    EXPECT_EQ(r.objectRoi(0, 0, View::Right), ideal.objectRoi(0, 0, View::Right));
-    EXPECT_DOUBLE_EQ(r.visibleFraction(0, 0, View::Right), ideal.visibleFraction(0, 0, View::Right));
-    EXPECT_DOUBLE_EQ(r.geometry().cy(), ideal.geometry().cy());
+    SCOPED_TRACE(static_cast<int>(shape));
+    SceneDescription base = smallScene(0.02, -0.03);
+    base.objects[0].shape = shape;
+    base.objects[0].size = Eigen::Vector3d(0.06, 0.05, 0.04);
+    base.objects[0].height = 0.06;
+    base.objects[0].yaw = 0.4;
+    SceneRenderer ideal(base);
+    cv::Mat l0, r0;
+    ideal.render(0, l0, r0, false);
+    const cv::Point2d cl0 = centroid(l0, base.background.colour), cr0 = centroid(r0, base.background.colour);
+
+    for (double offset : { 0.5, -1.25, 2.3, 5.0 })
+    {
+      SCOPED_TRACE(offset);
+      SceneDescription d = base;
+      d.camera.row_offset = offset;
+      SceneRenderer r(d);
+      cv::Mat l, rt;
+      r.render(0, l, rt, false);
+      EXPECT_EQ(cv::norm(l, l0, cv::NORM_INF), 0.0) << "the left image must not change";
+      const cv::Point2d cl = centroid(l, d.background.colour), cr = centroid(rt, d.background.colour);
+      EXPECT_NEAR(cl.y, cl0.y, 1e-9);
+      EXPECT_NEAR(cr.y - cr0.y, offset, 0.03);
+      EXPECT_NEAR(cr.x, cr0.x, 0.03);
+      // Ground truth and calibration stay the ideal ones.
+      EXPECT_EQ(r.objectRoi(0, 0, View::Right), ideal.objectRoi(0, 0, View::Right));
+      EXPECT_DOUBLE_EQ(r.visibleFraction(0, 0, View::Right), ideal.visibleFraction(0, 0, View::Right));
+      EXPECT_DOUBLE_EQ(r.geometry().cy(), ideal.geometry().cy());
+    }
   }
 }
 

@@ -301,9 +301,23 @@ int SceneRenderer::blurSamples(int k) const
       longest = std::max(longest, length);
     }
   };
+  // An object's reach from its centre: what its outline and a turning surface move with.
+  auto reach = [](const SceneSphere& s) {
+    switch (s.shape)
+    {
+      case SceneSphere::Shape::Box:
+        return 0.5 * s.size.norm();
+      case SceneSphere::Shape::Cylinder:
+        return std::hypot(s.radius, 0.5 * s.height);
+      case SceneSphere::Shape::Square:
+        return s.radius * std::sqrt(2.0);
+      default:
+        return s.radius;
+    }
+  };
   for (const SceneSphere& s : scene_.objects)
     if (s.trajectory.present(t))
-      path(s.trajectory, s.radius, s.spin);
+      path(s.trajectory, reach(s), s.spin);
   for (const SceneOccluder& o : scene_.occluders)
     if (o.trajectory.present(t))
       path(o.trajectory, 0.5 * std::hypot(o.width, o.height), 0.0);

@@ -303,7 +303,7 @@ Eigen::Matrix3d SceneSphere::orientation(double t) const
 void SceneRenderer::drawSolid(const SceneSphere& s, double t, View view, cv::Mat& img, cv::Mat& depth) const
 {
   using scene_detail::SolidHit;
-  const SceneCamera& cam = scene_.camera;
+  const SceneCamera& cam = imagingCamera(view);  // the right camera carries the rectification residual
   const Eigen::Vector3d c = s.trajectory.at(t) - cameraOrigin(view);
   const Eigen::Matrix3d rot = s.orientation(t);
   double bu0 = 0.0, bu1 = 0.0, bv0 = 0.0, bv1 = 0.0;
