@@ -94,10 +94,10 @@ BoxMatch matchBox(const StereoFrame& frame, const cv::Rect& box, const BoxMatchO
   const double cu = box.x + (box.width - 1) / 2.0, cv_ = box.y + (box.height - 1) / 2.0;
   const double hu = box.width / 2.0, hv = box.height / 2.0;
   const double scale = std::max(1.0, o.ring_scale);
-  const cv::Rect window = cv::Rect(static_cast<int>(std::floor(cu - hu * scale + 0.5)),
-                                   static_cast<int>(std::floor(cv_ - hv * scale + 0.5)),
-                                   static_cast<int>(std::ceil(2 * hu * scale)), static_cast<int>(std::ceil(2 * hv * scale))) &
-                          image;
+  const cv::Rect grown(static_cast<int>(std::floor(cu - hu * scale + 0.5)),
+                       static_cast<int>(std::floor(cv_ - hv * scale + 0.5)), static_cast<int>(std::ceil(2 * hu * scale)),
+                       static_cast<int>(std::ceil(2 * hv * scale)));
+  const cv::Rect window = grown & image;
 
   cv::Mat left, right;
   frame.left.convertTo(left, CV_32F);
