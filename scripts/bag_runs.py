@@ -82,16 +82,28 @@ def read_csv(path):
     return np.genfromtxt(path, delimiter=",", names=True, dtype=None, encoding="utf-8")
 
 
-def read_truth(bag_path):
+def read_truth(bag_path, with_target=False):
     """Per frame of a make_scene bag: whether the target is visible (ground_truth/target_visible, in order) and the
-    other objects' centres (ground_truth/others, by header.seq; [] where there are none)."""
+    other objects' centres (ground_truth/others, by header.seq; [] where there are none). with_target: also the
+    target's centre ("target", ground_truth/target) and box in the left image ("roi": x, y, width, height)."""
     import rosbag  # Debian's python3-rosbag; only needed here
-    visible, others = {}, {}
+    visible, others, target, roi = {}, {}, {}, {}
+    topics = ["ground_truth/target_visible", "ground_truth/others"]
+    if with_target:
+        topics += ["ground_truth/target", "ground_truth/target_roi"]
     with rosbag.Bag(bag_path) as bag:
-        for topic, msg, _ in bag.read_messages(topics=["ground_truth/target_visible", "ground_truth/others"]):
+        for topic, msg, _ in bag.read_messages(topics=topics):
             if topic == "ground_truth/target_visible":
                 visible[len(visible)] = bool(msg.data)
-            else:
+            elif topic == "ground_truth/others":
                 others[msg.header.seq] = [[p.position.x, p.position.y, p.position.z] for p in msg.poses]
-    return {"visible": [visible[k] for k in sorted(visible)],
-            "others": [others.get(k, []) for k in range(len(visible))]}
+            elif topic == "ground_truth/target":
+                target[msg.header.seq] = [msg.point.x, msg.point.y, msg.point.z]
+            else:  # RegionOfInterest has no header: in order, one per frame
+                roi[len(roi)] = [msg.x_offset, msg.y_offset, msg.width, msg.height]
+    n = len(visible)
+    truth = {"visible": [visible[k] for k in sorted(visible)], "others": [others.get(k, []) for k in range(n)]}
+    if with_target:
+        truth["target"] = [target.get(k) for k in range(n)]
+        truth["roi"] = [roi.get(k) for k in range(n)]
+    return truth
