@@ -82,6 +82,16 @@ class Metrics(unittest.TestCase):
         self.assertIsNone(g["rms_pct"])
         self.assertFalse(g["success"])
 
+    def test_a_tracker_that_cannot_start_is_a_run_that_never_converges(self):
+        truth = {"visible": [True] * 20, "target": [[0.0, 0.0, 2.0]] * 20, "others": [[]] * 20}
+        d = stress.without_estimates(truth, 5)
+        self.assertEqual(list(d["frame"]), list(range(5, 20)))
+        g = stress.score(d, truth["visible"], truth["others"])
+        self.assertIsNone(g["converged_frame"])
+        self.assertIsNone(g["ms_per_frame"])
+        self.assertFalse(g["success"])
+        self.assertAlmostEqual(g["mean_range_m"], 2.0)
+
     def test_missing_estimates_after_convergence_and_reacquisition(self):
         est = [(0.0, 0.0, 2.01)] * 60
         visible = [True] * 60
@@ -202,7 +212,10 @@ class Smoke(unittest.TestCase):
                          [("csrt", ""), ("ours", "1"), ("ours", "2"), ("ours", "3")])
         for r in rows:
             self.assertEqual(r["error"], "", r)
-            self.assertGreater(float(r["ms_per_frame"]), 0.0)
+            if r["ms_per_frame"]:
+                self.assertGreater(float(r["ms_per_frame"]), 0.0)
+            else:  # a tracker that could not start (e.g. CSRT without a right-image match) has no time and no result
+                self.assertEqual((r["converged_frame"], r["rms_cm"]), ("", ""))
             if r["kind"] == "synthetic":
                 self.assertIn(r["success"], ("0", "1"))
                 self.assertTrue(0 < int(r["visible_frames"]) <= 30)
