@@ -15,7 +15,6 @@ import platform
 import shutil
 import subprocess
 import sys
-import threading
 import time
 
 import numpy as np
@@ -23,6 +22,9 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+
+import bag_runs  # noqa: E402 (beside this file)
+from bag_runs import PinnedPool, parse_summary, read_csv  # noqa: E402
 
 COUNTS = [200, 400, 800, 1000, 1500, 2000, 4000]
 FILTERS = ["StereoConstraints", "Position3D", "Velocity3D"]
@@ -98,65 +100,35 @@ def plan(seeds, quick):
     return runs
 
 
-def parse_summary(text):
-    line = [l for l in text.splitlines() if l.startswith("summary:")]
-    if not line:
-        return {}
-    kv = {}
-    for item in line[-1].split()[1:]:
-        if "=" in item:
-            k, v = item.split("=", 1)
-            kv[k] = [float(x) for x in v.split(",")] if "," in v else float(v)
-    return kv
-
-
 def execute(runs, bin_dir, data_dir, out_dir, jobs):
-    """Run everything, `jobs` at a time, each worker pinned to its own core with taskset."""
-    todo = collections.deque(runs)
-    lock = threading.Lock()
+    """Run everything, `jobs` at a time, each pinned to its own core (bag_runs.PinnedPool)."""
+    pool = PinnedPool(jobs)
     done = [0]
     start = time.time()
 
-    def worker(core):
-        while True:
-            with lock:
-                if not todo:
-                    return
-                r = todo.popleft()
-            os.makedirs(os.path.join(out_dir, r.scene), exist_ok=True)
-            cmd = ["taskset", "-c", str(core), os.path.join(bin_dir, "track_bag"),
-                   os.path.join(data_dir, r.scene + ".bag"), "--quiet", "--output", os.path.join(out_dir, r.csv)] + r.args
-            p = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-            r.summary = parse_summary(p.stdout)
-            if p.returncode != 0 or not r.summary:
-                r.error = "exit %d: %s" % (p.returncode, " ".join(p.stdout.strip().splitlines()[-1:]))
-            with lock:
-                done[0] += 1
-                if done[0] % 50 == 0 or done[0] == len(runs):
-                    print("experiments: %d/%d runs, %.0f s" % (done[0], len(runs), time.time() - start), flush=True)
+    def finished(r):
+        def record(returncode, output):
+            r.summary = parse_summary(output)
+            if returncode != 0 or not r.summary:
+                r.error = "exit %d: %s" % (returncode, " ".join(output.strip().splitlines()[-1:]))
+            done[0] += 1
+            if done[0] % 50 == 0 or done[0] == len(runs):
+                print("experiments: %d/%d runs, %.0f s" % (done[0], len(runs), time.time() - start), flush=True)
+        return record
 
-    threads = [threading.Thread(target=worker, args=(core,)) for core in range(max(1, min(jobs, os.cpu_count() or 1)))]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join()
+    for r in runs:
+        os.makedirs(os.path.join(out_dir, r.scene), exist_ok=True)
+        pool.submit([os.path.join(bin_dir, "track_bag"), os.path.join(data_dir, r.scene + ".bag"), "--quiet",
+                     "--output", os.path.join(out_dir, r.csv)] + r.args, finished(r))
+    pool.run()
 
 
 def read_truth(bag_path, cache_path):
-    """Per frame: target visible, and the other objects' centres (ground_truth/others), from the bag."""
+    """Per frame: target visible, and the other objects' centres (ground_truth/others), from the bag (cached)."""
     if os.path.exists(cache_path) and os.path.getmtime(cache_path) > os.path.getmtime(bag_path):
         with open(cache_path) as f:
             return json.load(f)
-    import rosbag  # Debian's python3-rosbag; only needed here
-    visible, others = {}, {}
-    with rosbag.Bag(bag_path) as bag:
-        for topic, msg, _ in bag.read_messages(topics=["ground_truth/target_visible", "ground_truth/others"]):
-            if topic == "ground_truth/target_visible":
-                visible[len(visible)] = bool(msg.data)
-            else:
-                others[msg.header.seq] = [[p.position.x, p.position.y, p.position.z] for p in msg.poses]
-    truth = {"visible": [visible[k] for k in sorted(visible)],
-             "others": [others.get(k, []) for k in range(len(visible))]}
+    truth = bag_runs.read_truth(bag_path)
     with open(cache_path, "w") as f:
         json.dump(truth, f)
     return truth
@@ -165,7 +137,7 @@ def read_truth(bag_path, cache_path):
 def per_frame(run, out_dir, truth):
     """Per-frame arrays of a run: error, per-axis error, valid estimate, visible, wrong-object lock."""
     path = os.path.join(out_dir, run.csv)
-    d = np.genfromtxt(path, delimiter=",", names=True, dtype=None, encoding="utf-8")
+    d = read_csv(path)
     frame = d["frame"].astype(int)
     err = np.asarray(d["err"], dtype=float)
     est = np.stack([d["x"], d["y"], d["z"]], axis=1).astype(float)
