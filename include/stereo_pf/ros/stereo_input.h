@@ -6,6 +6,7 @@
 #include <array>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
@@ -51,6 +52,9 @@ public:
                 const sensor_msgs::CameraInfoConstPtr& left_info, const sensor_msgs::CameraInfoConstPtr& right_info,
                 StereoFrame& frame, DropReason& reason, std::string& why);
 
+  /// What was odd about the last assembled frame's calibration without stopping it (cameraInfoNotes(), image
+  /// and camera_info frame_ids that differ): one sentence each, for a warning the caller gives once.
+  const std::vector<std::string>& notes() const { return notes_; }
   /// The calibration of the last good frame.
   const StereoCalibration& calibration() const { return calibration_; }
   /// The options.
@@ -59,6 +63,7 @@ public:
 private:
   StereoInputOptions options_;
   StereoCalibration calibration_;
+  std::vector<std::string> notes_;
   std::shared_ptr<const void> keep_[2];  ///< what the converted (unrectified) images point into
   cv::Mat converted_[2];                 ///< BGR/mono view of each message
   cv::Mat rectified_[2];                 ///< rectification output buffers, reused across frames
