@@ -6,6 +6,9 @@
 #include <sensor_msgs/image_encodings.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
 
+#include <thread>
+
+#include "stereo_pf/ros/frame_slot.h"
 #include "stereo_pf/ros/ros_parameters.h"
 #include "stereo_pf/ros/stereo_input.h"
 #include "stereo_pf/ros/tracker_outputs.h"
@@ -241,6 +244,70 @@ TEST(StereoInput, EachCameraInfoIsValidatedAndTheMessageSaysWhatToDo)
   EXPECT_NE(input.notes()[0].find("frame_ids differ ('cam' vs 'right_cam')"), std::string::npos);
   EXPECT_TRUE(run(input, image(), image(), info(false), info(true)).ok);
   EXPECT_TRUE(input.notes().empty());
+}
+
+// The drop policy under overload: the receiver never waits, the worker gets the newest frame, every frame
+// replaced before the worker took it is counted, and nothing else is lost.
+TEST(LatestSlot, KeepsTheNewestAndCountsWhatItReplaced)
+{
+  LatestSlot<int> slot;
+  EXPECT_FALSE(slot.put(1));
+  EXPECT_TRUE(slot.put(2));  // 1 was never taken
+  EXPECT_TRUE(slot.put(3));
+  int item = 0;
+  ASSERT_TRUE(slot.take(item));
+  EXPECT_EQ(item, 3);
+  EXPECT_FALSE(slot.put(4));
+  ASSERT_TRUE(slot.take(item));
+  EXPECT_EQ(item, 4);
+  EXPECT_EQ(slot.putCount(), 4u);
+  EXPECT_EQ(slot.replacedCount(), 2u);
+
+  // A slow worker and a fast producer: taken + replaced = put, and the last one is always taken.
+  LatestSlot<int> busy;
+  std::vector<int> taken;
+  std::thread worker([&] {
+    int x = 0;
+    while (busy.take(x))
+    {
+      taken.push_back(x);
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+  });
+  for (int k = 1; k <= 200; ++k)
+  {
+    busy.put(k);
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  }
+  while (busy.putCount() != taken.size() + busy.replacedCount())
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  busy.close();
+  worker.join();
+  EXPECT_GT(busy.replacedCount(), 0u);
+  EXPECT_EQ(taken.size() + busy.replacedCount(), 200u);
+  EXPECT_EQ(taken.back(), 200);
+  EXPECT_TRUE(std::is_sorted(taken.begin(), taken.end()));
+  EXPECT_FALSE(busy.take(item)) << "take() after close()";
+}
+
+TEST(TrackerOutputs, TheStatusMessageSaysWhatToDo)
+{
+  const ViewingVolume volume(StereoGeometry(525, 525, 319.5, 239.5, 0.09, 640, 480), 0.5);
+  FrameResult r;
+  r.state = TrackState::Searching;
+  r.support = Support::LikeBackground;
+  r.evidence = 0.95;
+  r.background = 0.93;
+  const std::string background = describeTrack(r, EngineConfig(), volume);
+  EXPECT_NE(background.find("learn it again with ~set_target"), std::string::npos) << background;
+  r.state = TrackState::Lost;
+  r.support = Support::OutsideView;
+  const std::string outside = describeTrack(r, EngineConfig(), volume);
+  EXPECT_NE(outside.find("left what the cameras can see (near 0.0738 m, far 94.5 m"), std::string::npos) << outside;
+  r.state = TrackState::Tracking;
+  r.support = Support::Seen;
+  r.state_frames = 12;
+  EXPECT_NE(describeTrack(r, EngineConfig(), volume).find("tracking for 12 frames"), std::string::npos);
 }
 
 TEST(RosParameters, FlattensLikeTheYamlLoader)

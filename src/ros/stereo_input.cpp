@@ -23,6 +23,8 @@ const char* toString(DropReason reason)
       return "no target";
     case DropReason::ProcessingError:
       return "processing error";
+    case DropReason::Overload:
+      return "overload";
     case DropReason::Count:
       break;
   }

@@ -25,6 +25,7 @@ enum class DropReason : int
   OutOfSync,        ///< left/right stamps further apart than allowed, or a message left unpaired
   NoTarget,         ///< nothing to track yet (no target learned or loaded)
   ProcessingError,  ///< the engine threw
+  Overload,         ///< replaced by a newer frame before the tracker was free to take it
   Count
 };
 /// Short label of a reason, e.g. "bad image" (the diagnostics key).
