@@ -138,6 +138,18 @@ public:
     return stamp;
   }
 
+  /// Publish a frame whose right image is stamped `skew` seconds after the other three messages.
+  void publishSkewed(BagFrame f, double skew)
+  {
+    const ros::Time stamp(2000.0 + (count_++) / 30.0);
+    f.left.header.stamp = f.left_info.header.stamp = f.right_info.header.stamp = stamp;
+    f.right.header.stamp = stamp + ros::Duration(skew);
+    left_info_pub_.publish(f.left_info);
+    right_info_pub_.publish(f.right_info);
+    left_pub_.publish(f.left);
+    right_pub_.publish(f.right);
+  }
+
   /// Publish and wait for ~status with the same stamp; false when none came within `timeout` (a dropped frame).
   bool stepStatus(const BagFrame& f, stereo_pf::TrackStatus& status, double timeout = 3.0)
   {
@@ -790,6 +802,24 @@ TEST(Tracker, OverloadIsCountedAndExplained)
   for (size_t k = 0; k < 30; ++k)
     good += h.step(h.frames()[k], p) && distance(p, h.frames()[k].truth) < 0.08 ? 1 : 0;
   EXPECT_GE(good, 20);
+}
+
+// A right image stamped 1 ms off leaves two incomplete ExactTime sets (left at t, right at t + 1 ms): one
+// camera frame, one dropped frame (it was counted twice).
+TEST(Tracker, ASkewedFrameIsCountedOnce)
+{
+  Harness& h = *harness;
+  const size_t k = settleAt(60);
+  const uint64_t unpaired = h.counter("unpaired stereo sets", h.published());
+  const uint64_t out_of_sync = h.counter("dropped: out of sync", h.published());
+  h.publishSkewed(h.frames()[k], 0.001);
+  // ExactTime gives up on the two incomplete sets once later sets push them out of its queue.
+  stereo_pf::TrackStatus status;
+  for (size_t j = k + 1; j < k + 11; ++j)
+    h.stepStatus(h.frames()[j], status);
+  const uint64_t complete = h.published() - 1;  // the skewed one never completed
+  EXPECT_EQ(h.counter("unpaired stereo sets", complete), unpaired + 2);
+  EXPECT_EQ(h.counter("dropped: out of sync", complete), out_of_sync + 1);
 }
 
 TEST(Tracker, MisspeltParametersAreNamedInTheDiagnostics)
