@@ -460,7 +460,7 @@ bool FilterEngine::backgroundSimilarity(int s, int best, IsEvidence is_evidence,
     return false;
   // The samples are the best particle's hypotheses moved sideways by the same shift in every view: the same
   // rows (already converted by the cues' caches), size and disparity, so only the place differs.
-  const double width = volume_.maxDisparity();  // the image width
+  const double width = volume_.imageWidth();
   double lo = -std::numeric_limits<double>::infinity(), hi = std::numeric_limits<double>::infinity();
   double reach = 6.0;  // px: at least the 11x11 window of hypotheses without a radius
   for (const ImageHypotheses& h : views)

@@ -604,6 +604,8 @@ void TrackerNodelet::publish(const std_msgs::Header& header, const StereoFrame& 
   status->processing_time = (now - start).toSec();
   {
     std::lock_guard<std::mutex> lock(stats_mutex_);
+    ++frames_tracked_;  // before ~status goes out: a client that saw it finds it counted
+    estimates_published_ += tracking ? 1 : 0;
     status->frames_received = frames_in_;
     uint64_t dropped = 0;
     for (size_t r = 0; r < drops_.size(); ++r)
@@ -643,8 +645,6 @@ void TrackerNodelet::publish(const std_msgs::Header& header, const StereoFrame& 
 
   const double processing_ms = (ros::WallTime::now() - start).toSec() * 1e3;
   std::lock_guard<std::mutex> lock(stats_mutex_);
-  ++frames_tracked_;
-  estimates_published_ += tracking ? 1 : 0;
   debug_images_ += drawn;
   pushWindow(processing_ms_, processing_ms);
   pushWindow(latency_ms_, latency_ms);

@@ -31,6 +31,9 @@ public:
   double nearDepth() const { return near_depth_; }
   /// Farthest depth at which depth is measurable (or max_depth), m.
   double farDepth() const { return far_depth_; }
+  /// Image size, px.
+  double imageWidth() const { return width_; }
+  double imageHeight() const { return height_; }
 
   /// True when a left/right disparity (px) is within [minDisparity, maxDisparity] (false for NaN).
   bool containsDisparity(double disparity) const
