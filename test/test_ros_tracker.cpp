@@ -195,6 +195,14 @@ public:
     return targets_.count(stamp) > 0 || tf_stamps_.count(stamp) > 0;
   }
 
+  /// Whether a TF to the object frame came with `stamp` (waits `timeout` for stragglers).
+  bool tfAt(const ros::Time& stamp, double timeout = 0.2)
+  {
+    ros::WallDuration(timeout).sleep();
+    std::lock_guard<std::mutex> lock(mutex_);
+    return tf_stamps_.count(stamp) > 0;
+  }
+
   const ros::Time& lastStamp() const { return last_stamp_; }
 
   /// Publish frames (cycling through the bag) until `done` is ready or the timeout expires.
@@ -825,6 +833,60 @@ TEST(Tracker, ASkewedFrameIsCountedOnce)
   const uint64_t complete = h.published() - 1;  // the skewed one never completed
   EXPECT_EQ(h.counter("unpaired stereo sets", complete), unpaired + 2);
   EXPECT_EQ(h.counter("dropped: out of sync", complete), out_of_sync + 1);
+}
+
+// ~publish_when_lost (the node test sets it): while not tracking, ~target repeats the last tracked position,
+// ~status marks it invalid, and no TF goes out.
+TEST(Tracker, HeldEstimateWhileNotTrackingIsMarked)
+{
+  Harness& h = *harness;
+  bool held = false;
+  ros::NodeHandle("~").getParam(h.tracker() + "/publish_when_lost", held);
+  if (!held)
+    GTEST_SKIP() << "~publish_when_lost is not set for this tracker";
+  geometry_msgs::Point last;
+  const size_t k = settleAt(20);
+  ASSERT_TRUE(h.step(h.frames()[k], last));
+  ros::ServiceClient client = h.nh().serviceClient<stereo_pf::SetTarget>(h.tracker() + "/set_target");
+  stereo_pf::SetTarget wall;
+  wall.request.roi.x_offset = 20;
+  wall.request.roi.y_offset = 20;
+  wall.request.roi.width = 40;
+  wall.request.roi.height = 40;
+  auto done = std::async(std::launch::async, [&] { return client.call(wall); });
+  ASSERT_TRUE(h.publishUntil(done, k + 1));
+  ASSERT_TRUE(done.get());
+  ASSERT_TRUE(wall.response.success) << wall.response.message;
+  // A new target clears the held one: nothing to repeat until something is tracked.
+  stereo_pf::TrackStatus status;
+  geometry_msgs::Point p;
+  for (size_t j = 0; j < 5; ++j)
+  {
+    ASSERT_TRUE(h.stepStatus(h.frames()[j], status));
+    EXPECT_FALSE(status.estimate_valid);
+    EXPECT_FALSE(h.anyEstimateAt(h.lastStamp(), 0.05)) << "an estimate held across a new target";
+  }
+  // Track the right target again, then lose it by a jump across the swing.
+  learnTarget();
+  const size_t t = settleAt(0);
+  ASSERT_TRUE(h.step(h.frames()[t], last));
+  int repeated = 0;
+  for (size_t j = t + 40; j < t + 50; ++j)
+  {
+    ASSERT_TRUE(h.stepStatus(h.frames()[j % h.frames().size()], status));
+    if (status.estimate_valid)
+    {
+      ASSERT_TRUE(h.targetOf(h.lastStamp(), last));  // still tracking through the first frames after the jump
+      continue;
+    }
+    ASSERT_TRUE(h.targetOf(h.lastStamp(), p)) << "no held estimate while " << status.state_name;
+    EXPECT_FALSE(h.tfAt(h.lastStamp(), 0.05)) << "a TF of a held estimate";
+    EXPECT_EQ(p.x, last.x);
+    EXPECT_EQ(p.z, last.z);
+    ++repeated;
+  }
+  EXPECT_GT(repeated, 0) << "the jump was not a loss";
+  learnTarget();
 }
 
 TEST(Tracker, MisspeltParametersAreNamedInTheDiagnostics)
