@@ -303,7 +303,7 @@ TEST(TrackerOutputs, TheStatusMessageSaysWhatToDo)
   r.state = TrackState::Lost;
   r.support = Support::OutsideView;
   const std::string outside = describeTrack(r, EngineConfig(), volume);
-  EXPECT_NE(outside.find("left what the cameras can see (near 0.0738 m, far 94.5 m"), std::string::npos) << outside;
+  EXPECT_NE(outside.find("left what the cameras can see (near 0.0738 m, far 94.5 m, disparity 640 .. 0.5 px)"), std::string::npos) << outside;
   r.state = TrackState::Tracking;
   r.support = Support::Seen;
   r.state_frames = 12;

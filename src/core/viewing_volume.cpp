@@ -30,7 +30,7 @@ bool ViewingVolume::overlapsImage(double u, double v, double r) const
 std::string ViewingVolume::describe() const
 {
   char buf[128];
-  std::snprintf(buf, sizeof(buf), "near %.3g m, far %.3g m (disparity %.3g .. %.3g px)", near_depth_, far_depth_,
+  std::snprintf(buf, sizeof(buf), "near %.3g m, far %.3g m, disparity %.3g .. %.3g px", near_depth_, far_depth_,
                 max_disparity_, min_disparity_);
   return buf;
 }

@@ -46,7 +46,7 @@ public:
   /// finite.
   bool overlapsImage(double u, double v, double r) const;
 
-  /// "near 0.07 m, far 94.5 m (disparity 640 .. 0.5 px)", for messages.
+  /// "near 0.0738 m, far 94.5 m, disparity 640 .. 0.5 px", for messages.
   std::string describe() const;
 
 private:
