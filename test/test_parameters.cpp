@@ -49,6 +49,26 @@ TEST(Parameters, ViewsShareValues)
   EXPECT_DOUBLE_EQ(a.getDouble("sigma", 0.1, 0, 1), 0.3);
 }
 
+TEST(Parameters, RecordsTheKeysAskedForAndCopiesDeeply)
+{
+  Parameters p;
+  p.set("colour/sigma", 0.3);
+  p.set("colour/sigmaa", 0.3);
+  const Parameters colour = p.sub("colour");
+  colour.getDouble("sigma", 0.1, 0, 1);
+  colour.getInt("window", 11, 3, 101);  // absent, still a known key
+  EXPECT_EQ(p.unaskedKeys(), std::vector<std::string>{ "colour/sigmaa" });
+  EXPECT_EQ(colour.askedKeys(), (std::vector<std::string>{ "sigma", "window" }));
+  // A copy has its own values and its own record.
+  Parameters c = p.copy();
+  c.set("colour/sigma", 0.5);
+  EXPECT_DOUBLE_EQ(colour.getDouble("sigma", 0.1, 0, 1), 0.3);
+  EXPECT_EQ(c.unaskedKeys().size(), 2u);
+  EXPECT_EQ(stereo_pf::closestKey("colour/sigmaa", { "colour/sigma", "colour/window", "engine/seed" }), "colour/sigma");
+  EXPECT_EQ(stereo_pf::closestKey("engine/particle", { "engine/particles", "engine/seed" }), "engine/particles");
+  EXPECT_EQ(stereo_pf::closestKey("something_else", { "colour/sigma" }), "");
+}
+
 TEST(Parameters, ErrorsNameTheParameterValueAndRange)
 {
   Parameters p;

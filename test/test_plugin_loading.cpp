@@ -142,6 +142,44 @@ TEST(PluginLoading, BadPluginParameterNamesIt)
   EXPECT_THROW(Tracker{ q }, PluginError);
 }
 
+TEST(PluginLoading, MisspeltKeysAreNamedWithTheNearestKnownOne)
+{
+  Parameters p;
+  loadYamlString("colour: {sigmaa: 0.2}\n"
+                 "engine: {particle: 500}\n"
+                 "stereo: {sigma: 0.1}\n"
+                 "state_model: {type: stereo_pf/Position3D, z_mx: 4.0}\n"
+                 "queue_size: 3\n"
+                 "publish_tff: true\n"
+                 "entirely_unknown_setting: 1\n",
+                 p);
+  Tracker tracker(p);
+  const std::vector<std::string> m = unknownParameters(p, kRosRuntimeParameters);
+  auto said = [&m](const std::string& what) {
+    return std::any_of(m.begin(), m.end(), [&](const std::string& s) { return s.find(what) != std::string::npos; });
+  };
+  EXPECT_TRUE(said("'colour/sigmaa' (ignored): did you mean 'colour/sigma'?"));
+  EXPECT_TRUE(said("'engine/particle' (ignored): did you mean 'engine/particles'?"));
+  EXPECT_TRUE(said("'state_model/z_mx' (ignored): did you mean 'state_model/z_max'?"));
+  EXPECT_TRUE(said("'publish_tff' (ignored): did you mean 'publish_tf'?"));
+  EXPECT_TRUE(said("'stereo/sigma' (ignored): nothing loaded reads the namespace 'stereo'"));
+  EXPECT_TRUE(said("'entirely_unknown_setting' (ignored): not a parameter"));
+  EXPECT_FALSE(said("queue_size")) << "a ROS runtime key reported";
+  EXPECT_EQ(m.size(), 6u);
+}
+
+TEST(PluginLoading, TheShippedConfigurationsHaveNoUnknownKeys)
+{
+  for (const char* name : { "tracker.yaml", "colour_stereo.yaml", "multi_cue.yaml", "thesis_colour.yaml" })
+  {
+    Parameters p;
+    loadYamlFile(std::string(CONFIG_DIR) + "/" + name, p);
+    Tracker tracker(p);
+    const std::vector<std::string> m = unknownParameters(p, kRosRuntimeParameters);
+    EXPECT_TRUE(m.empty()) << name << ": " << (m.empty() ? "" : m.front());
+  }
+}
+
 int main(int argc, char** argv)
 {
   testing::InitGoogleTest(&argc, argv);

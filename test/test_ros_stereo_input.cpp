@@ -6,6 +6,9 @@
 #include <sensor_msgs/image_encodings.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
 
+#include <thread>
+
+#include "stereo_pf/ros/frame_slot.h"
 #include "stereo_pf/ros/ros_parameters.h"
 #include "stereo_pf/ros/stereo_input.h"
 #include "stereo_pf/ros/tracker_outputs.h"
@@ -142,6 +145,169 @@ TEST(StereoInput, RejectsBadFramesWithAReason)
 
   // A good frame after all that still works.
   EXPECT_TRUE(run(input, image(), image(), info(false), info(true)).ok);
+}
+
+// Issue 12: three frames with an all-zero K/P (or sizes that differ) and every later good frame was dropped
+// ("image_geometry rejected the camera_info pair"): fromCameraInfo reports a change, not validity.
+TEST(StereoInput, AGoodCalibrationWorksAgainRightAfterBadOnes)
+{
+  StereoInput input;
+  ASSERT_TRUE(run(input, image(), image(), info(false), info(true)).ok);
+  auto zero = info(true);
+  std::fill(zero->K.begin(), zero->K.end(), 0.0);
+  std::fill(zero->P.begin(), zero->P.end(), 0.0);
+  for (int k = 0; k < 3; ++k)
+  {
+    const Result bad = run(input, image(), image(), info(false), zero);
+    EXPECT_EQ(bad.reason, DropReason::BadCameraInfo);
+    EXPECT_NE(bad.why.find("right camera_info has no calibration (P is all zero"), std::string::npos) << bad.why;
+  }
+  const Result good = run(input, image(), image(), info(false), info(true));
+  EXPECT_TRUE(good.ok) << good.why;
+
+  auto small = info(true, 0.0, 32, 24);
+  for (int k = 0; k < 3; ++k)
+  {
+    const Result bad = run(input, image(), image(), info(false), small);
+    EXPECT_EQ(bad.reason, DropReason::BadCameraInfo);
+    EXPECT_NE(bad.why.find("sizes differ (64x48 vs 32x24)"), std::string::npos) << bad.why;
+  }
+  EXPECT_TRUE(run(input, image(), image(), info(false), info(true)).ok);
+  // With distortion (the maps are rebuilt) as well.
+  EXPECT_TRUE(run(input, image(), image(), info(false, -0.3), info(true, -0.3)).ok);
+  for (int k = 0; k < 3; ++k)
+    EXPECT_FALSE(run(input, image(), image(), info(false, -0.3), zero).ok);
+  EXPECT_TRUE(run(input, image(), image(), info(false, -0.3), info(true, -0.3)).ok);
+
+  // The calibration object on its own (StereoInput checks first, so it rarely sees a bad pair).
+  StereoCalibration calibration;
+  std::string error;
+  ASSERT_TRUE(calibration.update(*info(false), *info(true), error)) << error;
+  EXPECT_FALSE(calibration.update(*info(false), *small, error));
+  EXPECT_TRUE(calibration.update(*info(false), *info(true), error)) << error;
+  EXPECT_TRUE(calibration.valid());
+}
+
+TEST(StereoInput, EachCameraInfoIsValidatedAndTheMessageSaysWhatToDo)
+{
+  StereoInput input;
+  auto expectDrop = [&](const sensor_msgs::CameraInfoConstPtr& l, const sensor_msgs::CameraInfoConstPtr& r,
+                        const std::string& says) {
+    const Result res = run(input, image(), image(), l, r);
+    EXPECT_FALSE(res.ok) << says;
+    EXPECT_EQ(res.reason, DropReason::BadCameraInfo) << res.why;
+    EXPECT_NE(res.why.find(says), std::string::npos) << res.why;
+  };
+  // K = 0 with a valid P: raw images cannot be rectified.
+  auto k_zero = info(false);
+  std::fill(k_zero->K.begin(), k_zero->K.end(), 0.0);
+  expectDrop(k_zero, info(true), "left camera_info has K all zero (P is set)");
+  // ... but stereo_image_proc's rectified images need only P: accepted, with a note.
+  StereoInput rectified(StereoInputOptions{ true, 0.0 });
+  const Result ok = run(rectified, image(), image(), k_zero, info(true));
+  EXPECT_TRUE(ok.ok) << ok.why;
+  ASSERT_EQ(rectified.notes().size(), 1u);
+  EXPECT_NE(rectified.notes()[0].find("K all zero"), std::string::npos);
+
+  auto negative_f = info(false);
+  negative_f->K[0] = -50.0;
+  expectDrop(negative_f, info(true), "non-positive focal length in K");
+  auto size_only = boost::make_shared<sensor_msgs::CameraInfo>();
+  size_only->width = 64;
+  size_only->height = 48;
+  expectDrop(info(false), size_only, "right camera_info has no calibration");
+  expectDrop(info(false), boost::make_shared<sensor_msgs::CameraInfo>(), "right camera_info has no image size");
+  auto nan_d = info(false, 0.1);
+  nan_d->D[1] = std::nan("");
+  expectDrop(nan_d, info(true), "left camera_info contains D[1] = nan");
+  auto skewed_r = info(false);
+  skewed_r->R[1] = 0.5;
+  expectDrop(skewed_r, info(true), "R that is not a rotation");
+  auto other_f = info(true);
+  other_f->P[0] = 60.0;
+  expectDrop(info(false), other_f, "rectified focal lengths differ");
+  auto other_row = info(true);
+  other_row->P[6] += 3.0;
+  expectDrop(info(false), other_row, "different rows");
+  auto swapped = info(true);
+  swapped->P[3] = +5.0;
+  expectDrop(info(false), swapped, "left and right topics swapped");
+  auto no_baseline = info(true);
+  no_baseline->P[3] = 0.0;
+  expectDrop(info(false), no_baseline, "no baseline");
+
+  // Odd but usable: frame_ids that differ are said, not dropped.
+  auto other_frame = info(true);
+  other_frame->header.frame_id = "right_cam";
+  EXPECT_TRUE(run(input, image(), image(), info(false), other_frame).ok);
+  ASSERT_FALSE(input.notes().empty());
+  EXPECT_NE(input.notes()[0].find("frame_ids differ ('cam' vs 'right_cam')"), std::string::npos);
+  EXPECT_TRUE(run(input, image(), image(), info(false), info(true)).ok);
+  EXPECT_TRUE(input.notes().empty());
+}
+
+// The drop policy under overload: the receiver never waits, the worker gets the newest frame, every frame
+// replaced before the worker took it is counted, and nothing else is lost.
+TEST(LatestSlot, KeepsTheNewestAndCountsWhatItReplaced)
+{
+  LatestSlot<int> slot;
+  EXPECT_FALSE(slot.put(1));
+  EXPECT_TRUE(slot.put(2));  // 1 was never taken
+  EXPECT_TRUE(slot.put(3));
+  int item = 0;
+  ASSERT_TRUE(slot.take(item));
+  EXPECT_EQ(item, 3);
+  EXPECT_FALSE(slot.put(4));
+  ASSERT_TRUE(slot.take(item));
+  EXPECT_EQ(item, 4);
+  EXPECT_EQ(slot.putCount(), 4u);
+  EXPECT_EQ(slot.replacedCount(), 2u);
+
+  // A slow worker and a fast producer: taken + replaced = put, and the last one is always taken.
+  LatestSlot<int> busy;
+  std::vector<int> taken;
+  std::thread worker([&] {
+    int x = 0;
+    while (busy.take(x))
+    {
+      taken.push_back(x);
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    }
+  });
+  for (int k = 1; k <= 200; ++k)
+  {
+    busy.put(k);
+    std::this_thread::sleep_for(std::chrono::microseconds(200));
+  }
+  while (busy.putCount() != taken.size() + busy.replacedCount())
+    std::this_thread::sleep_for(std::chrono::milliseconds(1));
+  busy.close();
+  worker.join();
+  EXPECT_GT(busy.replacedCount(), 0u);
+  EXPECT_EQ(taken.size() + busy.replacedCount(), 200u);
+  EXPECT_EQ(taken.back(), 200);
+  EXPECT_TRUE(std::is_sorted(taken.begin(), taken.end()));
+  EXPECT_FALSE(busy.take(item)) << "take() after close()";
+}
+
+TEST(TrackerOutputs, TheStatusMessageSaysWhatToDo)
+{
+  const ViewingVolume volume(StereoGeometry(525, 525, 319.5, 239.5, 0.09, 640, 480), 0.5);
+  FrameResult r;
+  r.state = TrackState::Searching;
+  r.support = Support::LikeBackground;
+  r.evidence = 0.95;
+  r.background = 0.93;
+  const std::string background = describeTrack(r, EngineConfig(), volume);
+  EXPECT_NE(background.find("learn it again with ~set_target"), std::string::npos) << background;
+  r.state = TrackState::Lost;
+  r.support = Support::OutsideView;
+  const std::string outside = describeTrack(r, EngineConfig(), volume);
+  EXPECT_NE(outside.find("left what the cameras can see (near 0.0738 m, far 94.5 m, disparity 640 .. 0.5 px)"), std::string::npos) << outside;
+  r.state = TrackState::Tracking;
+  r.support = Support::Seen;
+  r.state_frames = 12;
+  EXPECT_NE(describeTrack(r, EngineConfig(), volume).find("tracking for 12 frames"), std::string::npos);
 }
 
 TEST(RosParameters, FlattensLikeTheYamlLoader)

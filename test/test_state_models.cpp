@@ -299,6 +299,7 @@ public:
     int frame;
     View view;
     int distinct;
+    int size;  ///< hypotheses in the batch (the engine's background check scores a few more)
   };
   std::vector<Call> calls;
   int frame = 0;
@@ -307,7 +308,8 @@ public:
   {
     std::vector<float> u = hyp.u;
     std::sort(u.begin(), u.end());
-    calls.push_back({ frame, hyp.view, static_cast<int>(std::unique(u.begin(), u.end()) - u.begin()) });
+    calls.push_back(
+        { frame, hyp.view, static_cast<int>(std::unique(u.begin(), u.end()) - u.begin()), hyp.size() });
     ColourContour::evaluate(cache, hyp, log_likelihood, similarity);
   }
 };
@@ -418,13 +420,16 @@ TEST(Engine, RefiningCueAloneIsAnOrdinaryCue)
   EngineConfig config;
   config.particles = 500;
   const RefineRun run = runWithContour(contour, false, 3, config);
-  // Every frame, searching included, and its similarity is the evidence.
+  // Every frame, searching included, and its similarity is the evidence (so it also scores the background
+  // check's few places: batches other than the particles').
   for (int k = 0; k < 3; ++k)
   {
-    int calls = 0;
+    int calls = 0, background = 0;
     for (const auto& c : contour->calls)
-      calls += c.frame == k ? 1 : 0;
+      if (c.frame == k)
+        (c.size == config.particles ? calls : background) += 1;
     EXPECT_EQ(calls, 2) << "frame " << k;
+    EXPECT_EQ(background, 2) << "frame " << k;
   }
   EXPECT_GT(run.evidence[0], 0.0);
 }

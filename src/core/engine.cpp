@@ -25,6 +25,24 @@ std::string toString(TrackState state)
   return "searching";
 }
 
+std::string toString(Support support)
+{
+  switch (support)
+  {
+    case Support::Seen:
+      return "seen";
+    case Support::Unsure:
+      return "unsure";
+    case Support::LowEvidence:
+      return "low evidence";
+    case Support::LikeBackground:
+      return "like background";
+    case Support::OutsideView:
+      return "outside view";
+  }
+  return "unsure";
+}
+
 EngineConfig EngineConfig::fromParameters(const Parameters& p)
 {
   EngineConfig c;
@@ -54,6 +72,10 @@ EngineConfig EngineConfig::fromParameters(const Parameters& p)
   c.proposal_min_depth = p.getDouble("proposal_min_depth", c.proposal_min_depth, 1e-3, 1e6);
   c.refine_jitter = p.getDouble("refine_jitter", c.refine_jitter, 0.0, 10.0);
   c.refine_search_weight = p.getDouble("refine_search_weight", c.refine_search_weight, 0.0, 1.0);
+  c.min_disparity = p.getDouble("min_disparity", c.min_disparity, 0.01, 100.0);
+  c.max_depth = p.getDouble("max_depth", c.max_depth, 0.0, 1e6);
+  c.background_samples = p.getInt("background_samples", c.background_samples, 0, 1000);
+  c.background_margin = p.getDouble("background_margin", c.background_margin, 0.0, 1.0);
   return c;
 }
 
@@ -104,7 +126,7 @@ void FilterEngine::applyPending()
     rng_.seed(config_.seed);
     initialised_ = false;
     state_ = TrackState::Searching;
-    seen_count_ = unseen_count_ = 0;
+    seen_count_ = unseen_count_ = state_frames_ = 0;
   }
   // Last, and with the flag cleared first: a plugin that rejects its new parameters throws out of step()
   // once, not on every later frame, and the restart above is not lost.
@@ -126,16 +148,40 @@ bool FilterEngine::learnTarget(const StereoFrame& frame, const cv::Rect& roi, st
     return false;
   }
   cache_.reset(frame);
+  // All or nothing: a model that cannot learn the region must not leave the others with a new target.
+  const std::string before = snapshotTargets();
   for (auto& m : observation_models_)
   {
     std::string e;
     if (!m->learnTarget(cache_, View::Left, roi, e))
     {
       error = "observation model '" + m->name() + "': " + e;
+      restoreTargets(before);
       return false;
     }
   }
   return true;
+}
+
+std::string FilterEngine::snapshotTargets() const
+{
+  cv::FileStorage fs(".yml", cv::FileStorage::WRITE | cv::FileStorage::MEMORY);
+  for (const auto& m : observation_models_)
+    if (m->hasTarget())
+      m->saveTarget(fs);
+  return fs.releaseAndGetString();
+}
+
+void FilterEngine::restoreTargets(const std::string& snapshot)
+{
+  cv::FileStorage fs(snapshot, cv::FileStorage::READ | cv::FileStorage::MEMORY);
+  for (auto& m : observation_models_)
+  {
+    const cv::FileNode node = fs[m->name()];
+    std::string ignored;  // written by the same models a moment ago: it reads back
+    if (!node.empty())
+      m->loadTarget(node, ignored);
+  }
 }
 
 bool FilterEngine::hasTarget() const
@@ -176,12 +222,34 @@ bool FilterEngine::loadTarget(const std::string& path, std::string& error)
       error = "cannot read target file '" + path + "'";
       return false;
     }
+    // Every model must find its entry before any target changes (a file saved with other cues).
+    std::vector<std::string> present, missing;
+    for (const auto& node : fs.root())
+      present.push_back(node.name());
+    for (const auto& m : observation_models_)
+      if (fs[m->name()].empty())
+        missing.push_back(m->name());
+    if (!missing.empty())
+    {
+      auto join = [](const std::vector<std::string>& v) {
+        std::string s;
+        for (const auto& x : v)
+          s += (s.empty() ? "" : ", ") + x;
+        return s.empty() ? std::string("nothing") : s;
+      };
+      error = "target file '" + path + "' has no entry for observation model(s) " + join(missing) + " (it holds " +
+              join(present) + "): it was saved with other cues; learn the target again (set_target) and save it " +
+              "with this configuration. No target was changed";
+      return false;
+    }
+    const std::string before = snapshotTargets();
     for (auto& m : observation_models_)
     {
       std::string e;
       if (!m->loadTarget(fs[m->name()], e))
       {
-        error = "target file '" + path + "', model '" + m->name() + "': " + e;
+        error = "target file '" + path + "', model '" + m->name() + "': " + e + ". No target was changed";
+        restoreTargets(before);
         return false;
       }
     }
@@ -312,16 +380,144 @@ void FilterEngine::prepareProposals(const StereoGeometry& g, int count)
   }
 }
 
-void FilterEngine::updateTrackState(double evidence)
+Support FilterEngine::judge(double evidence, double contrast, bool background_measured) const
 {
-  const bool seen = evidence >= config_.found_similarity;
-  const bool unseen = evidence < config_.lost_similarity;
-  seen_count_ = seen ? seen_count_ + 1 : 0;
-  unseen_count_ = unseen ? unseen_count_ + 1 : 0;
-  if (state_ != TrackState::Tracking && seen_count_ >= config_.found_frames)
-    state_ = TrackState::Tracking;
-  else if (state_ == TrackState::Tracking && unseen_count_ >= config_.lost_frames)
+  if (evidence < config_.lost_similarity)
+    return Support::LowEvidence;
+  // Evidence the background explains as well is no evidence (a target learned from a box of wall).
+  if (background_measured && contrast < config_.background_margin)
+    return Support::LikeBackground;
+  return evidence >= config_.found_similarity ? Support::Seen : Support::Unsure;
+}
+
+void FilterEngine::updateTrackState(Support support, FrameResult& result)
+{
+  const TrackState before = state_;
+  if (support == Support::OutsideView)
+  {
+    // No estimate can come from outside what the cameras see: lost at once, searched for afresh.
     state_ = TrackState::Lost;
+    seen_count_ = unseen_count_ = 0;
+    initialised_ = false;
+    result.reinitialised = true;
+  }
+  else
+  {
+    const bool seen = support == Support::Seen;
+    const bool unseen = support == Support::LowEvidence || support == Support::LikeBackground;
+    seen_count_ = seen ? seen_count_ + 1 : 0;
+    unseen_count_ = unseen ? unseen_count_ + 1 : 0;
+    if (state_ != TrackState::Tracking && seen_count_ >= config_.found_frames)
+      state_ = TrackState::Tracking;
+    else if (state_ == TrackState::Tracking && unseen_count_ >= config_.lost_frames)
+    {
+      state_ = TrackState::Lost;
+      // A set that settled on background which looks like the target stays there: spread it afresh.
+      if (support == Support::LikeBackground)
+      {
+        initialised_ = false;
+        result.reinitialised = true;
+      }
+    }
+  }
+  state_frames_ = state_ == before ? state_frames_ + 1 : 1;
+  result.state = state_;
+  result.state_frames = state_frames_;
+}
+
+int FilterEngine::boundToViewingVolume(int s)
+{
+  ParticleSet& p = sets_[s];
+  const ImageHypotheses* left = nullptr;
+  const ImageHypotheses* right = nullptr;
+  for (const ImageHypotheses& hyp : hypotheses_[s])
+    (hyp.view == View::Left ? left : right) = &hyp;
+  const bool both = left && right;
+  int inside = 0;
+  for (int i = 0; i < p.size(); ++i)
+  {
+    bool in = !both || volume_.containsDisparity(static_cast<double>(left->u[i]) - right->u[i]);
+    for (const ImageHypotheses& hyp : hypotheses_[s])
+      in = in && volume_.overlapsImage(hyp.u[i], hyp.v[i], hyp.radius[i]);
+    if (in)
+      ++inside;
+    else
+    {
+      p.log_weights[i] = -std::numeric_limits<double>::infinity();
+      if (sum_sim_.size() == p.size())
+        sum_sim_[i] = 0.0;  // nor is it evidence
+    }
+  }
+  return inside;
+}
+
+template <class IsEvidence>
+bool FilterEngine::backgroundSimilarity(int s, int best, IsEvidence is_evidence, double& background)
+{
+  const int wanted = config_.background_samples;
+  const std::vector<ImageHypotheses>& views = hypotheses_[s];
+  if (wanted <= 0 || views.empty() || best < 0)
+    return false;
+  // The samples are the best particle's hypotheses moved sideways by the same shift in every view: the same
+  // rows (already converted by the cues' caches), size and disparity, so only the place differs.
+  const double width = volume_.imageWidth();
+  double lo = -std::numeric_limits<double>::infinity(), hi = std::numeric_limits<double>::infinity();
+  double reach = 6.0;  // px: at least the 11x11 window of hypotheses without a radius
+  for (const ImageHypotheses& h : views)
+  {
+    const double u = h.u[best], v = h.v[best];
+    const double r = std::isfinite(h.radius[best]) ? std::max(0.0f, h.radius[best]) : 0.0;
+    if (!std::isfinite(u) || !std::isfinite(v) || !volume_.overlapsImage(u, v, 0.0))
+      return false;
+    reach = std::max(reach, r);
+    lo = std::max(lo, r - u);
+    hi = std::min(hi, width - 1.0 - r - u);
+  }
+  // Away from the object: its window and surround ring (1.25 r) must not reach it.
+  const double exclusion = 3.0 * reach;
+  std::vector<double>& shifts = background_values_;
+  shifts.clear();
+  for (int j = 0; j < wanted && hi > lo; ++j)
+  {
+    const double shift = lo + (j + 0.5) * (hi - lo) / wanted;
+    if (std::fabs(shift) >= exclusion)
+      shifts.push_back(shift);
+  }
+  const int count = static_cast<int>(shifts.size());
+  if (count < std::max(3, wanted / 4))
+    return false;  // the object fills the rows: nothing to compare with
+
+  background_sum_.setZero(count);
+  background_ll_.resize(count);
+  background_sim_.resize(count);
+  int cues = 0;
+  for (const ImageHypotheses& h : views)
+  {
+    background_hyp_.view = h.view;
+    background_hyp_.resize(count);
+    for (int j = 0; j < count; ++j)
+    {
+      background_hyp_.u[j] = static_cast<float>(h.u[best] + shifts[j]);
+      background_hyp_.v[j] = h.v[best];
+      background_hyp_.radius[j] = h.radius[best];
+      background_hyp_.valid[j] = 1;
+    }
+    for (auto& model : observation_models_)
+    {
+      if (!is_evidence(*model))
+        continue;
+      model->evaluate(cache_, background_hyp_, background_ll_, background_sim_);
+      background_sum_ += background_sim_;
+      ++cues;
+    }
+  }
+  if (cues == 0)
+    return false;
+  std::vector<double> values(background_sum_.data(), background_sum_.data() + count);
+  auto mid = values.begin() + count / 2;
+  std::nth_element(values.begin(), mid, values.end());
+  background = *mid / cues;
+  return true;
 }
 
 template <class Take>
@@ -377,6 +573,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
 
   const StereoGeometry& geometry = frame.geometry;
   cache_.reset(frame);
+  volume_ = ViewingVolume(geometry, config_.min_disparity, config_.max_depth);
   FrameResult result;
 
   double dt = initialised_ ? frame.stamp - last_stamp_ : config_.nominal_dt;
@@ -422,7 +619,11 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
                                                  [&](const std::shared_ptr<ObservationModel>& m) {
                                                    return active(*m) && refining(*m);
                                                  });
+  auto is_evidence = [&](const ObservationModel& m) { return active(m) && !refining(m) && !m.comparesViews(); };
   double evidence = std::numeric_limits<double>::infinity();
+  double contrast = std::numeric_limits<double>::infinity();
+  bool background_measured = false;
+  bool escaped = false;  // every particle of a set left the viewing volume
   result.log_marginal = 0.0;
   for (int s = 0; s < static_cast<int>(sets_.size()); ++s)
   {
@@ -438,10 +639,23 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
         return Use{};
       return refining(m) ? Use{ config_.refine_search_weight, false } : Use{ 1.0, true };
     });
+    escaped = boundToViewingVolume(s) == 0 || escaped;
     // Evidence that the object is seen: the best particle's mean similarity over cues and views; for
     // several sets (left and right images) the object must be seen in all of them.
-    const double best = cues > 0 ? sum_sim_.maxCoeff() / cues : 0.0;
+    Eigen::Index best_index = -1;
+    const double best = cues > 0 ? sum_sim_.maxCoeff(&best_index) / cues : 0.0;
     evidence = std::min(evidence, best);
+    // ... and not by the background alike: the same cues at places beside the best particle.
+    double background = 0.0;
+    if (cues > 0 && backgroundSimilarity(s, static_cast<int>(best_index), is_evidence, background))
+    {
+      background_measured = true;
+      if (best - background < contrast)
+      {
+        contrast = best - background;
+        result.background = background;
+      }
+    }
     if (two_stage)
     {
       result.log_marginal += p.normalise();
@@ -452,6 +666,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
       observe(geometry, s, [&](const ObservationModel& m) {
         return active(m) && refining(m) ? Use{ 1.0, false } : Use{};
       });
+      escaped = boundToViewingVolume(s) == 0 || escaped;
     }
     result.log_marginal += p.normalise();
   }
@@ -464,8 +679,14 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     result.ess = std::min(result.ess, p.effectiveSampleSize());
 
   result.estimate = state_model_->estimate(geometry, sets_, config_.estimator, config_.density_radius);
-  updateTrackState(result.evidence);
-  result.state = state_;
+  Support support = judge(result.evidence, contrast, background_measured);
+  if (escaped || (result.estimate.valid && !volume_.containsDepth(result.estimate.position.z())))
+  {
+    support = Support::OutsideView;
+    result.estimate.valid = false;
+  }
+  result.support = support;
+  updateTrackState(support, result);
 
   for (ParticleSet& p : sets_)
   {

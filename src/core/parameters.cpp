@@ -39,8 +39,76 @@ std::string formatDouble(double v)
 }
 }  // namespace
 
-Parameters::Parameters() : values_(std::make_shared<std::map<std::string, std::string>>())
+Parameters::Parameters()
+  : values_(std::make_shared<std::map<std::string, std::string>>()), asked_(std::make_shared<Asked>())
 {
+}
+
+Parameters Parameters::copy() const
+{
+  Parameters p;
+  *p.values_ = *values_;
+  p.prefix_ = prefix_;
+  return p;
+}
+
+void Parameters::noteAsked(const std::string& key) const
+{
+  std::lock_guard<std::mutex> lock(asked_->mutex);
+  asked_->keys.insert(full(key));
+}
+
+std::vector<std::string> Parameters::askedKeys() const
+{
+  const std::string p = prefix_.empty() ? "" : prefix_ + "/";
+  std::vector<std::string> out;
+  std::lock_guard<std::mutex> lock(asked_->mutex);
+  for (const auto& k : asked_->keys)
+    if (k.compare(0, p.size(), p) == 0)
+      out.push_back(k.substr(p.size()));
+  return out;
+}
+
+std::vector<std::string> Parameters::unaskedKeys() const
+{
+  const std::string p = prefix_.empty() ? "" : prefix_ + "/";
+  std::vector<std::string> out;
+  std::lock_guard<std::mutex> lock(asked_->mutex);
+  for (const auto& kv : *values_)
+    if (kv.first.compare(0, p.size(), p) == 0 && !asked_->keys.count(kv.first))
+      out.push_back(kv.first.substr(p.size()));
+  return out;
+}
+
+std::string closestKey(const std::string& key, const std::vector<std::string>& candidates)
+{
+  // Two-row dynamic programme over the edit distance.
+  auto distance = [](const std::string& a, const std::string& b) {
+    std::vector<size_t> prev(b.size() + 1), cur(b.size() + 1);
+    for (size_t j = 0; j <= b.size(); ++j)
+      prev[j] = j;
+    for (size_t i = 1; i <= a.size(); ++i)
+    {
+      cur[0] = i;
+      for (size_t j = 1; j <= b.size(); ++j)
+        cur[j] = std::min({ prev[j] + 1, cur[j - 1] + 1, prev[j - 1] + (a[i - 1] == b[j - 1] ? 0 : 1) });
+      std::swap(prev, cur);
+    }
+    return prev[b.size()];
+  };
+  const size_t limit = std::max<size_t>(2, key.size() / 3);
+  std::string best;
+  size_t best_distance = limit + 1;
+  for (const auto& c : candidates)
+  {
+    const size_t d = distance(key, c);
+    if (d < best_distance)
+    {
+      best_distance = d;
+      best = c;
+    }
+  }
+  return best;
 }
 
 Parameters Parameters::sub(const std::string& ns) const
@@ -95,6 +163,7 @@ std::vector<std::string> Parameters::keys() const
 
 double Parameters::getDouble(const std::string& key, double fallback, double min, double max) const
 {
+  noteAsked(key);
   if (!has(key))
     return fallback;
   double v = 0.0;
@@ -109,6 +178,7 @@ double Parameters::getDouble(const std::string& key, double fallback, double min
 
 int Parameters::getInt(const std::string& key, int fallback, int min, int max) const
 {
+  noteAsked(key);
   if (!has(key))
     return fallback;
   double v = 0.0;
@@ -123,6 +193,7 @@ int Parameters::getInt(const std::string& key, int fallback, int min, int max) c
 
 bool Parameters::getBool(const std::string& key, bool fallback) const
 {
+  noteAsked(key);
   if (!has(key))
     return fallback;
   std::string t = trim(raw(key));
@@ -137,6 +208,7 @@ bool Parameters::getBool(const std::string& key, bool fallback) const
 std::string Parameters::getString(const std::string& key, const std::string& fallback,
                                   const std::vector<std::string>& allowed) const
 {
+  noteAsked(key);
   const std::string v = has(key) ? trim(raw(key)) : fallback;
   if (!allowed.empty() && std::find(allowed.begin(), allowed.end(), v) == allowed.end())
   {
@@ -150,6 +222,7 @@ std::string Parameters::getString(const std::string& key, const std::string& fal
 
 std::vector<double> Parameters::getDoubles(const std::string& key, const std::vector<double>& fallback) const
 {
+  noteAsked(key);
   if (!has(key))
     return fallback;
   std::string t = trim(raw(key));

@@ -1,12 +1,127 @@
 #include "stereo_pf/ros/conversions.h"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 
+#include <Eigen/Core>
+#include <Eigen/LU>
 #include <cv_bridge/cv_bridge.h>
 #include <sensor_msgs/image_encodings.h>
 
 namespace stereo_pf
 {
+namespace
+{
+template <class T>
+bool allFinite(const T& values, std::string& which, const char* name)
+{
+  for (size_t i = 0; i < values.size(); ++i)
+    if (!std::isfinite(values[i]))
+    {
+      which = std::string(name) + "[" + std::to_string(i) + "] = " + std::to_string(values[i]);
+      return false;
+    }
+  return true;
+}
+
+template <class T>
+bool allZero(const T& values)
+{
+  return std::all_of(values.begin(), values.end(), [](double v) { return v == 0.0; });
+}
+
+std::string number(double v)
+{
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%g", v);
+  return buf;
+}
+
+const char* const kCalibrate = "calibrate the camera (camera_calibration) and give the driver the file "
+                               "(camera_info_url)";
+}  // namespace
+
+std::string checkCameraInfo(const sensor_msgs::CameraInfo& c, const std::string& side, bool rectified)
+{
+  const std::string who = side + " camera_info";
+  if (c.width == 0 || c.height == 0)
+    return who + " has no image size (" + std::to_string(c.width) + "x" + std::to_string(c.height) +
+           "): the camera is not calibrated or its driver publishes no calibration; " + kCalibrate;
+  std::string which;
+  if (!allFinite(c.K, which, "K") || !allFinite(c.D, which, "D") || !allFinite(c.R, which, "R") ||
+      !allFinite(c.P, which, "P"))
+    return who + " contains " + which + ": the calibration is corrupt; " + kCalibrate;
+  if (allZero(c.P))
+    return who + " has no calibration (P is all zero, only the size is set: a driver whose calibration file does "
+                 "not match the camera publishes this); " + kCalibrate;
+  if (!(c.P[0] > 0.0) || !(c.P[5] > 0.0))
+    return who + " has a non-positive rectified focal length (P[0] = " + number(c.P[0]) + ", P[5] = " +
+           number(c.P[5]) + "); " + kCalibrate;
+  if (!rectified)
+  {
+    // The rectification maps are built from K: without it raw images cannot be rectified.
+    if (allZero(c.K))
+      return who + " has K all zero (P is set): raw images cannot be rectified without K; publish the full "
+                   "calibration, or set ~images_rectified: true if these images are already rectified";
+    if (!(c.K[0] > 0.0) || !(c.K[4] > 0.0))
+      return who + " has a non-positive focal length in K (K[0] = " + number(c.K[0]) + ", K[4] = " +
+             number(c.K[4]) + "); " + kCalibrate;
+  }
+  if (!allZero(c.R))
+  {
+    const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> r(c.R.data());
+    const double off = (r * r.transpose() - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+    if (off > 1e-3 || r.determinant() < 0.0)
+      return who + " has an R that is not a rotation (|R R^T - I| up to " + number(off) + ", det " +
+             number(r.determinant()) + "); " + kCalibrate;
+  }
+  return "";
+}
+
+std::string checkCameraInfoPair(const sensor_msgs::CameraInfo& l, const sensor_msgs::CameraInfo& r)
+{
+  if (l.width != r.width || l.height != r.height)
+    return "left and right camera_info sizes differ (" + std::to_string(l.width) + "x" + std::to_string(l.height) +
+           " vs " + std::to_string(r.width) + "x" + std::to_string(r.height) +
+           "): both cameras must run at the same resolution (check the driver's video mode)";
+  auto differs = [](double a, double b, double tolerance) { return std::fabs(a - b) > tolerance; };
+  if (differs(l.P[0], r.P[0], 1e-3 * l.P[0]) || differs(l.P[5], r.P[5], 1e-3 * l.P[5]))
+    return "the rectified focal lengths differ (left P[0], P[5] = " + number(l.P[0]) + ", " + number(l.P[5]) +
+           "; right " + number(r.P[0]) + ", " + number(r.P[5]) +
+           "): not a rectified stereo pair; calibrate the two cameras together (camera_calibration with both)";
+  if (differs(l.P[6], r.P[6], 0.5))
+    return "the rectified principal points are on different rows (left P[6] = " + number(l.P[6]) + ", right " +
+           number(r.P[6]) + "): not a rectified stereo pair; calibrate the two cameras together";
+  // Right P[3] = -fx * baseline: negative for a right camera at +x of the left one.
+  const double tx = r.P[3] - l.P[3];
+  if (tx == 0.0)
+    return "the right camera_info has no baseline (P[3] = " + number(r.P[3]) +
+           "; it must be -fx * baseline): calibrate the two cameras together, or check that the right topic "
+           "carries the right camera's calibration";
+  if (tx > 0.0)
+    return "the right camera_info's P[3] = " + number(r.P[3]) +
+           " is positive: the right camera is to the left of the left one; are the left and right topics swapped? "
+           "remap them";
+  return "";
+}
+
+std::vector<std::string> cameraInfoNotes(const sensor_msgs::CameraInfo& l, const sensor_msgs::CameraInfo& r,
+                                         bool rectified)
+{
+  std::vector<std::string> notes;
+  if (l.header.frame_id != r.header.frame_id)
+    notes.push_back("the left and right camera_info frame_ids differ ('" + l.header.frame_id + "' vs '" +
+                    r.header.frame_id + "'): the estimate is published in the left images' frame");
+  if (rectified && (allZero(l.K) || allZero(r.K)))
+    notes.push_back("a camera_info has K all zero: ignored, since ~images_rectified is set and P gives the geometry");
+  if (std::fabs(l.P[2] - r.P[2]) > 0.5)
+    notes.push_back("the rectified principal points are in different columns (left P[2] = " + number(l.P[2]) +
+                    ", right " + number(r.P[2]) + "): the tracker assumes they are equal, so depths are biased; "
+                    "calibrate with zero disparity (camera_calibration's default)");
+  return notes;
+}
+
 namespace
 {
 bool sameCalibration(const sensor_msgs::CameraInfo& a, const sensor_msgs::CameraInfo& b)
@@ -58,10 +173,18 @@ bool StereoCalibration::update(const sensor_msgs::CameraInfo& left, const sensor
     error = "camera_info has a zero focal length in P (uncalibrated camera?)";
     return false;
   }
-  if (!model_.fromCameraInfo(left, right))
+  // fromCameraInfo returns whether the model changed, not whether it is valid: a pair equal to the one it
+  // already holds (the good calibration again after a bad one) returns false. Validity is checked above and
+  // by StereoGeometry::validate() below.
+  // It also asserts (aborting the whole nodelet manager) that both frame_ids are equal; only the intrinsics
+  // matter here, so the right one is given the left frame_id (cameraInfoNotes() says when they differ).
+  if (left.header.frame_id == right.header.frame_id)
+    model_.fromCameraInfo(left, right);
+  else
   {
-    error = "image_geometry rejected the camera_info pair";
-    return false;
+    sensor_msgs::CameraInfo same_frame = right;
+    same_frame.header.frame_id = left.header.frame_id;
+    model_.fromCameraInfo(left, same_frame);
   }
   const auto& l = model_.left();
   geometry_ = StereoGeometry(l.fx(), l.fy(), l.cx(), l.cy(), model_.baseline(), static_cast<int>(left.width),

@@ -1,5 +1,8 @@
 #include "stereo_pf/ros/plugin_loader.h"
 
+#include <algorithm>
+#include <set>
+
 namespace stereo_pf
 {
 namespace
@@ -30,6 +33,55 @@ std::shared_ptr<Base> create(pluginlib::ClassLoader<Base>& loader, const std::st
   }
 }
 }  // namespace
+
+const std::vector<std::string> kRosRuntimeParameters = {
+  "approximate_sync", "queue_size", "images_rectified", "max_stamp_difference", "image_transport", "camera_frame",
+  "object_frame", "publish_tf", "camera_parent_frame", "target_file", "target_roi", "target_roi_topic",
+  "set_target_timeout", "marker_radius", "marker_sigma_scale", "trajectory_length", "diagnostic_period",
+  "publish_when_lost", "state_model/acceleration_noise"
+};
+
+std::vector<std::string> unknownParameters(const Parameters& params, const std::vector<std::string>& also_known)
+{
+  std::vector<std::string> known = params.askedKeys();
+  known.insert(known.end(), also_known.begin(), also_known.end());
+  std::set<std::string> namespaces;
+  for (const auto& k : known)
+    if (k.find('/') != std::string::npos)
+      namespaces.insert(k.substr(0, k.find('/')));
+  std::vector<std::string> messages;
+  for (const auto& key : params.unaskedKeys())
+  {
+    if (std::find(also_known.begin(), also_known.end(), key) != also_known.end())
+      continue;
+    std::string m = "unknown parameter '" + key + "' (ignored)";
+    const auto slash = key.find('/');
+    const std::string ns = slash == std::string::npos ? "" : key.substr(0, slash);
+    if (!ns.empty() && !namespaces.count(ns))
+    {
+      // A whole namespace nobody reads: a cue that is not loaded, or a misspelt cue name.
+      std::string loaded;
+      for (const auto& n : namespaces)
+        loaded += (loaded.empty() ? "" : ", ") + n;
+      const std::string near_ns = closestKey(ns, std::vector<std::string>(namespaces.begin(), namespaces.end()));
+      m += ": nothing loaded reads the namespace '" + ns + "'" +
+           (near_ns.empty() ? std::string(" (an observation model not in observation_models?)") :
+                              " (did you mean '" + near_ns + "'?)") +
+           "; the namespaces read are: " + loaded;
+    }
+    else
+    {
+      const std::string near = closestKey(key, known);
+      if (!near.empty())
+        m += ": did you mean '" + near + "'?";
+      else
+        m += ": not a parameter of the tracker, the engine, the state model or a loaded cue (config/tracker.yaml "
+             "lists them all)";
+    }
+    messages.push_back(m);
+  }
+  return messages;
+}
 
 Tracker::Tracker(const Parameters& params)
   : state_loader_(std::make_unique<pluginlib::ClassLoader<StateModel>>("stereo_pf", "stereo_pf::StateModel"))

@@ -1,6 +1,7 @@
 #include "stereo_pf/ros/stereo_input.h"
 
 #include <cmath>
+#include <cstdio>
 
 #include <sensor_msgs/image_encodings.h>
 
@@ -22,6 +23,8 @@ const char* toString(DropReason reason)
       return "no target";
     case DropReason::ProcessingError:
       return "processing error";
+    case DropReason::Overload:
+      return "overload";
     case DropReason::Count:
       break;
   }
@@ -35,24 +38,6 @@ std::string size(uint32_t w, uint32_t h)
   return std::to_string(w) + "x" + std::to_string(h);
 }
 
-template <class Array>
-bool allFinite(const Array& a)
-{
-  for (double v : a)
-    if (!std::isfinite(v))
-      return false;
-  return true;
-}
-
-// image_geometry uses K, D and R to build the rectification maps: a NaN there gives NaN maps, not an error.
-std::string checkInfo(const sensor_msgs::CameraInfo& info, const char* side)
-{
-  if (info.width == 0 || info.height == 0)
-    return std::string(side) + " camera_info has no image size (uncalibrated camera?)";
-  if (!allFinite(info.K) || !allFinite(info.D) || !allFinite(info.R) || !allFinite(info.P))
-    return std::string(side) + " camera_info contains NaN or infinity";
-  return "";
-}
 }  // namespace
 
 std::string checkImageMessage(const sensor_msgs::Image& msg)
@@ -93,15 +78,20 @@ bool StereoInput::assemble(const sensor_msgs::ImageConstPtr& left, const sensor_
   if (skew > options_.max_stamp_difference)
   {
     reason = DropReason::OutOfSync;
-    why = "left and right stamps differ by " + std::to_string(skew * 1e3) + " ms (max_stamp_difference " +
-          std::to_string(options_.max_stamp_difference * 1e3) + " ms)";
+    char buf[200];
+    std::snprintf(buf, sizeof(buf),
+                  "left and right stamps differ by %.3g ms (~max_stamp_difference %.3g ms): the images were not taken "
+                  "together; raise ~max_stamp_difference only if the object moves little in that time",
+                  skew * 1e3, options_.max_stamp_difference * 1e3);
+    why = buf;
     return false;
   }
 
-  // Calibration first: the image sizes are checked against it.
+  // Calibration first: the image sizes are checked against it. Each camera_info on its own, then the pair; a
+  // bad one drops this frame only (the calibration keeps no trace of it).
   for (const auto& [info, side] : { std::make_pair(left_info, "left"), std::make_pair(right_info, "right") })
   {
-    const std::string bad = checkInfo(*info, side);
+    const std::string bad = checkCameraInfo(*info, side, options_.images_rectified);
     if (!bad.empty())
     {
       reason = DropReason::BadCameraInfo;
@@ -109,11 +99,21 @@ bool StereoInput::assemble(const sensor_msgs::ImageConstPtr& left, const sensor_
       return false;
     }
   }
+  why = checkCameraInfoPair(*left_info, *right_info);
+  if (!why.empty())
+  {
+    reason = DropReason::BadCameraInfo;
+    return false;
+  }
   if (!calibration_.update(*left_info, *right_info, why))
   {
     reason = DropReason::BadCameraInfo;
     return false;
   }
+  notes_ = cameraInfoNotes(*left_info, *right_info, options_.images_rectified);
+  if (left->header.frame_id != left_info->header.frame_id)
+    notes_.push_back("the left image's frame_id '" + left->header.frame_id + "' differs from its camera_info's '" +
+                     left_info->header.frame_id + "': the estimate is published in the image's");
 
   const sensor_msgs::ImageConstPtr images[2] = { left, right };
   const char* sides[2] = { "left", "right" };
@@ -130,14 +130,16 @@ bool StereoInput::assemble(const sensor_msgs::ImageConstPtr& left, const sensor_
   if (left->width != right->width || left->height != right->height)
   {
     reason = DropReason::SizeMismatch;
-    why = "left image is " + size(left->width, left->height) + ", right image " + size(right->width, right->height);
+    why = "left image is " + size(left->width, left->height) + ", right image " + size(right->width, right->height) +
+          ": both cameras must deliver the same size (check the driver's video mode)";
     return false;
   }
   if (left->width != left_info->width || left->height != left_info->height)
   {
     reason = DropReason::SizeMismatch;
     why = "images are " + size(left->width, left->height) + " but camera_info says " +
-          size(left_info->width, left_info->height);
+          size(left_info->width, left_info->height) +
+          ": the calibration is for another resolution; run the camera at the calibrated one or recalibrate";
     return false;
   }
 

@@ -223,4 +223,41 @@ visualization_msgs::MarkerArray toMarkers(const std_msgs::Header& header, const 
   return array;
 }
 
+std::string describeTrack(const FrameResult& r, const EngineConfig& c, const ViewingVolume& volume)
+{
+  char buf[600];
+  const char* state = r.state == TrackState::Tracking ? "tracking" : r.state == TrackState::Lost ? "target lost" :
+                                                                                                    "searching";
+  switch (r.support)
+  {
+    case Support::OutsideView:
+      std::snprintf(buf, sizeof(buf),
+                    "target lost: the estimate left what the cameras can see (%s); searching the whole view again",
+                    volume.describe().c_str());
+      break;
+    case Support::LikeBackground:
+      std::snprintf(buf, sizeof(buf),
+                    "%s: the target's appearance is found beside it too (evidence %.2f, background %.2f, needed "
+                    "margin %.2f): if this lasts, the learned target is mostly background; learn it again with "
+                    "~set_target on a frame where the box holds the object only",
+                    state, r.evidence, r.background, c.background_margin);
+      break;
+    case Support::LowEvidence:
+      std::snprintf(buf, sizeof(buf), "%s: the target is not seen (evidence %.2f < lost_similarity %.2f)%s", state,
+                    r.evidence, c.lost_similarity,
+                    r.state == TrackState::Tracking ? "" : "; searching (occluded, out of view, or the lighting changed?)");
+      break;
+    case Support::Seen:
+    case Support::Unsure:
+      if (r.state == TrackState::Tracking)
+        std::snprintf(buf, sizeof(buf), "tracking for %d frames (evidence %.2f, background %.2f)", r.state_frames,
+                      r.evidence, r.background);
+      else
+        std::snprintf(buf, sizeof(buf), "%s: the target may be in view (evidence %.2f, background %.2f)", state,
+                      r.evidence, r.background);
+      break;
+  }
+  return buf;
+}
+
 }  // namespace stereo_pf

@@ -223,8 +223,12 @@ public:
 class FilterMethod : public Method
 {
 public:
-  explicit FilterMethod(const Options& o) : tracker_(buildParameters(o)), save_target_(o.save_target)
+  explicit FilterMethod(const Options& o)
+    : params_(buildParameters(o)), tracker_(params_), save_target_(o.save_target)
   {
+    // A misspelt key would otherwise be ignored without a word (the nodelet's own keys are not ours to read).
+    for (const auto& m : stereo_pf::unknownParameters(params_, stereo_pf::kRosRuntimeParameters))
+      std::cerr << "track_bag: warning: " << m << "\n";
     std::string error;
     if (!o.target_model.empty() && !engine().loadTarget(o.target_model, error))
       throw std::runtime_error(error);
@@ -264,6 +268,7 @@ public:
 private:
   stereo_pf::FilterEngine& engine() { return tracker_.engine(); }
 
+  stereo_pf::Parameters params_;  // before tracker_: it is built from it
   stereo_pf::Tracker tracker_;
   std::string save_target_;
 };

@@ -14,6 +14,7 @@
 #include "stereo_pf/core/parameters.h"
 #include "stereo_pf/core/random.h"
 #include "stereo_pf/core/stereo_frame.h"
+#include "stereo_pf/core/viewing_volume.h"
 #include "stereo_pf/observation_model.h"
 #include "stereo_pf/state_model.h"
 
@@ -28,6 +29,18 @@ enum class TrackState
 };
 /// "searching", "tracking" or "lost".
 std::string toString(TrackState state);
+
+/// What one frame's evidence says about the object (FrameResult::support); decides the track state.
+enum class Support
+{
+  Seen,            ///< evidence >= found_similarity and above the background by background_margin
+  Unsure,          ///< between the thresholds: the track state does not change
+  LowEvidence,     ///< evidence < lost_similarity
+  LikeBackground,  ///< background locations score as well as the best particle (within background_margin)
+  OutsideView      ///< the estimate, or every particle of a set, left the viewing volume: lost at once
+};
+/// "seen", "unsure", "low evidence", "like background" or "outside view".
+std::string toString(Support support);
 
 /// Engine tunables (the `~engine/...` namespace, or the top level of the CLI config).
 struct EngineConfig
@@ -56,6 +69,20 @@ struct EngineConfig
   /// this (0: skipped then, the default: an outline of the target's colour is also found on clutter of that
   /// colour, and the search did no better with it). They are never part of the evidence.
   double refine_search_weight = 0.0;
+  /// The viewing volume (ViewingVolume): particles whose hypotheses leave it weigh nothing, and an estimate
+  /// outside it is no estimate (the track is lost and the sets are redrawn from the prior). Far limit: the
+  /// depth at which the disparity falls to min_disparity px (fx b / min_disparity: 94 m for the thesis rig).
+  double min_disparity = 0.5;
+  /// m; a nearer far limit (0: min_disparity alone sets it).
+  double max_depth = 0.0;
+  /// Background check: the evidence cues also score this many locations along the best particle's image rows,
+  /// away from it (same apparent size and disparity); the median of their similarities is the background
+  /// (FrameResult::background). 0: no check.
+  int background_samples = 16;
+  /// The best particle counts as seen only when its similarity exceeds the background by this much; a frame
+  /// where it does not is "like background" (not seen): a target whose appearance is everywhere, e.g. learned
+  /// from a box that holds mostly wall, is never tracked.
+  double background_margin = 0.2;
 
   /// Read from `params` (missing keys keep their defaults); throws ParameterError.
   static EngineConfig fromParameters(const Parameters& params);
@@ -68,6 +95,14 @@ struct FrameResult
   TrackState state = TrackState::Searching;
   double ess = 0.0;                    ///< effective sample size before resampling (minimum over sets)
   double evidence = 0.0;               ///< best particle's mean cue similarity in [0, 1]
+  /// Median similarity at background locations (EngineConfig::background_samples); what the evidence must beat
+  /// by background_margin (0 when not measured).
+  double background = 0.0;
+  Support support = Support::Unsure;   ///< what this frame's evidence says
+  int state_frames = 0;                ///< consecutive frames in `state`, this one included
+  /// The sets were found outside the viewing volume or lost to the background: redrawn from the prior at the
+  /// next frame.
+  bool reinitialised = false;
   double log_marginal = 0.0;           ///< log mean likelihood (sum over sets)
   bool resampled = false;
   double dt = 0.0;                     ///< seconds since the previous frame
@@ -93,11 +128,12 @@ public:
   void reset();
 
   /// Learn the target from `roi` in the left image of `frame` (every observation model learns it).
-  /// Returns false with `error` set when any model cannot.
+  /// Returns false with `error` set when any model cannot; then every model that had a target keeps it.
   bool learnTarget(const StereoFrame& frame, const cv::Rect& roi, std::string& error);
   /// True when every enabled observation model has a target.
   bool hasTarget() const;
-  /// Save / load every model's target (OpenCV YAML/XML file). False with `error` on failure.
+  /// Save / load every model's target (OpenCV YAML/XML file). False with `error` on failure; a load that fails
+  /// (a model missing from the file, a malformed entry) leaves every model that had a target with it.
   bool saveTarget(const std::string& path, std::string& error) const;
   bool loadTarget(const std::string& path, std::string& error);
 
@@ -115,13 +151,28 @@ public:
   const std::vector<std::shared_ptr<ObservationModel>>& observationModels() const { return observation_models_; }
   /// The hypotheses of the last step, per set and per view (debug drawing).
   const std::vector<std::vector<ImageHypotheses>>& hypotheses() const { return hypotheses_; }
+  /// The viewing volume of the last step's frame (default-constructed before the first step).
+  const ViewingVolume& viewingVolume() const { return volume_; }
 
 private:
   void applyPending();
   void initialiseParticles(const StereoGeometry& geometry);
   void respawn(const StereoGeometry& geometry, int set, int count);
   void prepareProposals(const StereoGeometry& geometry, int count);
-  void updateTrackState(double evidence);
+  /// Classify the frame's evidence (Support) against the thresholds and the background.
+  Support judge(double evidence, double background, bool background_measured) const;
+  /// Track state machine; a loss to the background or the volume re-initialises the sets.
+  void updateTrackState(Support support, FrameResult& result);
+  /// Give the particles of set `s` whose hypotheses leave the viewing volume zero weight (log-weight -inf);
+  /// returns how many are inside.
+  int boundToViewingVolume(int s);
+  /// Median similarity of the evidence cues (`is_evidence`) at background locations along the rows of particle
+  /// `best` of set `s` (its hypotheses shifted sideways, away from it); false when too few locations fit.
+  template <class IsEvidence>
+  bool backgroundSimilarity(int s, int best, IsEvidence is_evidence, double& background);
+  /// Every model's target as OpenCV YAML text, and back: learnTarget/loadTarget restore it when any model fails.
+  std::string snapshotTargets() const;
+  void restoreTargets(const std::string& snapshot);
   /// How observe() uses one model: its weight is multiplied by `weight` (0: not evaluated), and its
   /// similarity counts as evidence when `evidence`.
   struct Use
@@ -152,6 +203,8 @@ private:
   TrackState state_ = TrackState::Searching;
   int seen_count_ = 0;
   int unseen_count_ = 0;
+  int state_frames_ = 0;
+  ViewingVolume volume_;
 
   // detection-driven proposals of this frame: (left pixel, right pixel) pairs
   std::vector<std::pair<Pixel, Pixel>> proposals_;
@@ -160,6 +213,9 @@ private:
 
   // scratch buffers kept across frames
   Eigen::VectorXd scratch_ll_, scratch_sim_, sum_sim_;
+  ImageHypotheses background_hyp_;
+  Eigen::VectorXd background_ll_, background_sim_, background_sum_;
+  std::vector<double> background_values_;
   std::vector<int> resample_indices_;
   Eigen::MatrixXd resample_scratch_;
 };

@@ -4,6 +4,8 @@
 
 #include <map>
 #include <memory>
+#include <mutex>
+#include <set>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -19,7 +21,8 @@ public:
 };
 
 /// A view into a shared parameter map under a namespace prefix. Copies share the same map, so values
-/// set later (reconfigure) are seen by every view.
+/// set later (reconfigure) are seen by every view. The typed getters also record which keys were asked for
+/// (present or not), so the keys nobody reads (misspelt or misplaced) can be reported (unaskedKeys()).
 class Parameters
 {
 public:
@@ -42,6 +45,12 @@ public:
   std::string raw(const std::string& key, const std::string& fallback = "") const;
   /// Every key (relative to this view) that starts with this view's prefix.
   std::vector<std::string> keys() const;
+  /// A deep copy of the whole tree (same prefix): its own values and its own record of asked keys.
+  Parameters copy() const;
+  /// Every key (relative to this view) a typed getter was asked for, present or not: the known parameters.
+  std::vector<std::string> askedKeys() const;
+  /// The keys present (relative to this view) that no typed getter asked for: misspelt or misplaced ones.
+  std::vector<std::string> unaskedKeys() const;
 
   /// A number in [min, max]; `fallback` when absent. Throws ParameterError when malformed or out of range.
   double getDouble(const std::string& key, double fallback, double min, double max) const;
@@ -56,9 +65,22 @@ public:
   std::vector<double> getDoubles(const std::string& key, const std::vector<double>& fallback) const;
 
 private:
+  /// Which keys the typed getters were asked for (shared by the views of one tree; getters may run on
+  /// several threads, hence the mutex).
+  struct Asked
+  {
+    std::mutex mutex;
+    std::set<std::string> keys;
+  };
   std::string full(const std::string& key) const;
+  void noteAsked(const std::string& key) const;
   std::shared_ptr<std::map<std::string, std::string>> values_;
+  std::shared_ptr<Asked> asked_;
   std::string prefix_;
 };
+
+/// The candidate nearest to `key` by edit distance (Levenshtein: insertions, deletions, substitutions), or
+/// "" when none is within max(2, |key| / 3) edits. For "did you mean" messages.
+std::string closestKey(const std::string& key, const std::vector<std::string>& candidates);
 
 }  // namespace stereo_pf

@@ -27,6 +27,16 @@ const std::vector<std::pair<std::string, std::string>> kDefaultObservationModels
   { "stereo_pf/ColourHSI", "colour" }, { "stereo_pf/ColourContour", "colour_contour" }
 };
 
+/// The tracker nodelet's own parameters (read once at start-up) and those its reconfigure servers write
+/// besides the plugins' (state_model/acceleration_noise). track_bag --config ignores them.
+extern const std::vector<std::string> kRosRuntimeParameters;
+
+/// One message per parameter of `params` that no component asked for once a Tracker was built from it
+/// (misspelt or misplaced: the components ignore it), naming it and the nearest known key (those the engine,
+/// the state model and every loaded cue asked for, and `also_known`), or saying that no loaded component reads
+/// its namespace.
+std::vector<std::string> unknownParameters(const Parameters& params, const std::vector<std::string>& also_known);
+
 /// An engine with the plugins it runs on. The class loaders are declared first so they are destroyed
 /// last: no plugin outlives the loader that made it.
 class Tracker

@@ -6,6 +6,7 @@
 #include <array>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
@@ -24,6 +25,7 @@ enum class DropReason : int
   OutOfSync,        ///< left/right stamps further apart than allowed, or a message left unpaired
   NoTarget,         ///< nothing to track yet (no target learned or loaded)
   ProcessingError,  ///< the engine threw
+  Overload,         ///< replaced by a newer frame before the tracker was free to take it
   Count
 };
 /// Short label of a reason, e.g. "bad image" (the diagnostics key).
@@ -51,6 +53,9 @@ public:
                 const sensor_msgs::CameraInfoConstPtr& left_info, const sensor_msgs::CameraInfoConstPtr& right_info,
                 StereoFrame& frame, DropReason& reason, std::string& why);
 
+  /// What was odd about the last assembled frame's calibration without stopping it (cameraInfoNotes(), image
+  /// and camera_info frame_ids that differ): one sentence each, for a warning the caller gives once.
+  const std::vector<std::string>& notes() const { return notes_; }
   /// The calibration of the last good frame.
   const StereoCalibration& calibration() const { return calibration_; }
   /// The options.
@@ -59,6 +64,7 @@ public:
 private:
   StereoInputOptions options_;
   StereoCalibration calibration_;
+  std::vector<std::string> notes_;
   std::shared_ptr<const void> keep_[2];  ///< what the converted (unrectified) images point into
   cv::Mat converted_[2];                 ///< BGR/mono view of each message
   cv::Mat rectified_[2];                 ///< rectification output buffers, reused across frames

@@ -68,6 +68,11 @@ private:
 visualization_msgs::MarkerArray toMarkers(const std_msgs::Header& header, const FrameResult& result,
                                           const EstimateTrail& trajectory, const MarkerOptions& options);
 
+/// The track state of one frame in words (~status message, diagnostics summary), saying what to do when
+/// something is wrong: a target the background explains as well (learn it again), an estimate that left what
+/// the cameras see, evidence too low for too long.
+std::string describeTrack(const FrameResult& result, const EngineConfig& config, const ViewingVolume& volume);
+
 /// Eigen decomposition of a covariance into the scale (full axis lengths for `sigma_scale` standard
 /// deviations) and orientation (quaternion x, y, z, w) of its ellipsoid; right-handed, finite.
 void covarianceEllipsoid(const Eigen::Matrix3d& covariance, double sigma_scale, Eigen::Vector3d& scale,

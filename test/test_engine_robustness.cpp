@@ -1,0 +1,323 @@
+// The engine on a robot's bad days (issue 12): the state stays inside what the cameras can see, a target the
+// background explains as well is never "tracking", a set that leaves the viewing volume is lost and redrawn,
+// and learning or loading a target changes all the cues' targets or none.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <string>
+#include <unistd.h>
+
+#include "stereo_pf/core/engine.h"
+#include "stereo_pf/core/scene.h"
+#include "stereo_pf/core/viewing_volume.h"
+#include "stereo_pf/plugins/colour_contour.h"
+#include "stereo_pf/plugins/colour_hsi.h"
+#include "stereo_pf/plugins/position_3d.h"
+
+using namespace stereo_pf;
+
+namespace
+{
+const StereoGeometry kRig(525, 525, 319.5, 239.5, 0.09, 640, 480);
+
+std::shared_ptr<Position3D> position3D()
+{
+  auto m = std::make_shared<Position3D>();
+  m->initialize("state_model", Parameters());
+  return m;
+}
+
+template <class Cue>
+std::shared_ptr<Cue> cue(const std::string& name)
+{
+  auto m = std::make_shared<Cue>();
+  m->initialize(name, Parameters());
+  return m;
+}
+
+/// The default cues: the colour histogram and its outline.
+std::vector<std::shared_ptr<ObservationModel>> defaultCues()
+{
+  return { cue<ColourHSI>("colour"), cue<ColourContour>("colour_contour") };
+}
+
+/// Frames of a shipped scene, rendered once per test.
+class Scene
+{
+public:
+  explicit Scene(const std::string& name) : renderer_(loadScene(std::string(SCENES_DIR) + "/" + name)) {}
+  StereoFrame frame(int k)
+  {
+    renderer_.render(k, left_, right_);
+    StereoFrame f;
+    f.geometry = renderer_.geometry();
+    f.left = left_;
+    f.right = right_;
+    f.stamp = renderer_.stamp(k);
+    return f;
+  }
+  SceneRenderer& renderer() { return renderer_; }
+
+private:
+  SceneRenderer renderer_;
+  cv::Mat left_, right_;
+};
+
+/// Every model's target as text (to compare targets before and after a failed change).
+std::string targets(const FilterEngine& engine)
+{
+  cv::FileStorage fs(".yml", cv::FileStorage::WRITE | cv::FileStorage::MEMORY);
+  for (const auto& m : engine.observationModels())
+    if (m->hasTarget())
+      m->saveTarget(fs);
+  return fs.releaseAndGetString();
+}
+}  // namespace
+
+TEST(ViewingVolume, FollowsTheCalibration)
+{
+  const ViewingVolume v(kRig, 0.5);
+  // fx b = 47.25 px m: the far limit where the disparity is half a pixel, the near one where it is the width.
+  EXPECT_NEAR(v.farDepth(), 47.25 / 0.5, 1e-9);
+  EXPECT_NEAR(v.nearDepth(), 47.25 / 640.0, 1e-9);
+  EXPECT_TRUE(v.containsDepth(1.0));
+  EXPECT_FALSE(v.containsDepth(100.0));
+  EXPECT_FALSE(v.containsDepth(0.05));
+  EXPECT_FALSE(v.containsDepth(std::nan("")));
+  EXPECT_FALSE(v.containsDisparity(0.2));
+  EXPECT_FALSE(v.containsDisparity(700.0));
+  // A longer baseline resolves farther.
+  EXPECT_NEAR(ViewingVolume(StereoGeometry(525, 525, 319.5, 239.5, 0.18, 640, 480), 0.5).farDepth(), 189.0, 1e-9);
+  // max_depth can only bring the far limit nearer.
+  EXPECT_NEAR(ViewingVolume(kRig, 0.5, 5.0).farDepth(), 5.0, 1e-9);
+  EXPECT_NEAR(ViewingVolume(kRig, 0.5, 1000.0).farDepth(), 94.5, 1e-9);
+  // A disc overlaps the image when any of it is inside; a non-finite centre never does.
+  EXPECT_TRUE(v.overlapsImage(-5.0, 100.0, 10.0));
+  EXPECT_FALSE(v.overlapsImage(-5.0, 100.0, 2.0));
+  EXPECT_TRUE(v.overlapsImage(639.4, 479.4, 0.0));
+  EXPECT_FALSE(v.overlapsImage(660.0, 100.0, 10.0));
+  EXPECT_FALSE(v.overlapsImage(std::nan(""), 100.0, 10.0));
+}
+
+// Issue 12's offline reproduction: the box of frame 12 learned on frame 13 holds mostly wall. Before the bound
+// the estimate grew ~x1.2 per frame (|z| = 10^22 m by the end of the bag) while the track said "tracking".
+TEST(EngineBounds, ATargetLearnedAFrameLateNeverDivergesAndIsNeverTrackedWrongly)
+{
+  Scene scene("pendulum_uncluttered.yaml");
+  FilterEngine engine(position3D(), defaultCues(), EngineConfig());
+  std::string error;
+  ASSERT_TRUE(engine.learnTarget(scene.frame(13), scene.renderer().targetRoi(12), error)) << error;
+  double max_z = 0.0;
+  int tracking = 0, like_background = 0;
+  for (int k = 13; k < 100; ++k)
+  {
+    const FrameResult r = engine.step(scene.frame(k));
+    const double far = engine.viewingVolume().farDepth();
+    // Every particle and the estimate stay inside what the cameras can see.
+    const ParticleSet& p = engine.sets().front();
+    for (int i = 0; i < p.size(); ++i)
+      ASSERT_LE(std::fabs(p.states(i, 2)), 2.0 * far) << "frame " << k << ": a particle at z = " << p.states(i, 2);
+    if (r.estimate.valid)
+    {
+      ASSERT_LE(std::fabs(r.estimate.position.z()), far) << "frame " << k;
+      max_z = std::max(max_z, std::fabs(r.estimate.position.z()));
+    }
+    // Lost or searching is honest; tracking must be right.
+    if (r.state == TrackState::Tracking)
+    {
+      ++tracking;
+      ASSERT_TRUE(r.estimate.valid);
+      EXPECT_LT((r.estimate.position - scene.renderer().targetPosition(k)).norm(), 0.05) << "frame " << k;
+    }
+    like_background += r.support == Support::LikeBackground ? 1 : 0;
+  }
+  std::printf("a frame late: max |z| %.2f m (far limit %.1f m), %d frames tracking, %d like background\n", max_z,
+              engine.viewingVolume().farDepth(), tracking, like_background);
+  EXPECT_GT(like_background, 0) << "the background check never recognised the target as background";
+}
+
+// A target learned on a patch of the wall is everywhere: never tracked, never outside the volume.
+TEST(EngineBounds, ATargetLearnedOnTheWallIsNeverTracked)
+{
+  Scene scene("pendulum_uncluttered.yaml");
+  FilterEngine engine(position3D(), defaultCues(), EngineConfig());
+  std::string error;
+  ASSERT_TRUE(engine.learnTarget(scene.frame(0), cv::Rect(20, 20, 40, 40), error)) << error;
+  for (int k = 0; k < 40; ++k)
+  {
+    const FrameResult r = engine.step(scene.frame(k));
+    EXPECT_NE(r.state, TrackState::Tracking) << "frame " << k << ": evidence " << r.evidence << ", background "
+                                             << r.background;
+    if (r.estimate.valid)
+    {
+      EXPECT_LE(r.estimate.position.z(), engine.viewingVolume().farDepth());
+    }
+  }
+}
+
+// The good case: the background check does not get in the way, and the background is far below the evidence.
+TEST(EngineBounds, TheRightTargetIsTrackedAndStandsOutFromTheBackground)
+{
+  Scene scene("pendulum_uncluttered.yaml");
+  FilterEngine engine(position3D(), defaultCues(), EngineConfig());
+  std::string error;
+  ASSERT_TRUE(engine.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
+  FrameResult r;
+  int tracking = 0;
+  for (int k = 0; k < 30; ++k)
+  {
+    r = engine.step(scene.frame(k));
+    tracking += r.state == TrackState::Tracking ? 1 : 0;
+    if (r.state == TrackState::Tracking)
+    {
+      EXPECT_EQ(r.state_frames, tracking) << "frames since acquisition";
+    }
+  }
+  EXPECT_GE(tracking, 25);
+  EXPECT_EQ(r.support, Support::Seen);
+  EXPECT_GT(r.evidence - r.background, 0.5) << "evidence " << r.evidence << ", background " << r.background;
+}
+
+namespace
+{
+/// Position3D that, when asked, throws every particle far beyond what the cameras resolve.
+class Escaping : public Position3D
+{
+public:
+  bool escape = false;
+  void predict(int set, double dt, ParticleSet& particles, Rng& rng) const override
+  {
+    Position3D::predict(set, dt, particles, rng);
+    if (escape)
+      particles.states.col(2).array() += 1e6;
+  }
+};
+}  // namespace
+
+TEST(EngineBounds, ASetOutsideTheViewingVolumeIsLostAndRedrawnFromThePrior)
+{
+  Scene scene("pendulum_uncluttered.yaml");
+  auto state = std::make_shared<Escaping>();
+  state->initialize("state_model", Parameters());
+  FilterEngine engine(state, defaultCues(), EngineConfig());
+  std::string error;
+  ASSERT_TRUE(engine.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
+  FrameResult r;
+  for (int k = 0; k < 10; ++k)
+    r = engine.step(scene.frame(k));
+  ASSERT_EQ(r.state, TrackState::Tracking);
+
+  state->escape = true;
+  r = engine.step(scene.frame(10));
+  state->escape = false;
+  EXPECT_EQ(r.support, Support::OutsideView);
+  EXPECT_EQ(r.state, TrackState::Lost);
+  EXPECT_FALSE(r.estimate.valid) << "an estimate from outside the viewing volume";
+  EXPECT_TRUE(r.reinitialised);
+
+  // Redrawn from the prior (z_min..z_max) at the next frame, and found again.
+  r = engine.step(scene.frame(11));
+  const ParticleSet& p = engine.sets().front();
+  EXPECT_LE(p.states.col(2).maxCoeff(), 3.0 + 1.0);
+  int k = 12;
+  for (; k < 40 && r.state != TrackState::Tracking; ++k)
+    r = engine.step(scene.frame(k));
+  EXPECT_EQ(r.state, TrackState::Tracking) << "not re-acquired after the re-initialisation";
+  EXPECT_LT((r.estimate.position - scene.renderer().targetPosition(k - 1)).norm(), 0.05);
+}
+
+TEST(EngineBounds, ANearerMaxDepthBoundsTheParticles)
+{
+  Scene scene("pendulum_uncluttered.yaml");
+  EngineConfig config;
+  config.max_depth = 2.0;
+  FilterEngine engine(position3D(), defaultCues(), config);
+  std::string error;
+  ASSERT_TRUE(engine.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
+  const FrameResult r = engine.step(scene.frame(0));  // the prior reaches 3 m
+  const ParticleSet& p = engine.sets().front();
+  double beyond = 0.0;
+  for (int i = 0; i < p.size(); ++i)
+    if (p.states(i, 2) > 2.0 + 1e-6)
+      beyond += 1.0;  // resampled away: none of them can be drawn
+  EXPECT_EQ(beyond, 0.0);
+  EXPECT_NEAR(engine.viewingVolume().farDepth(), 2.0, 1e-9);
+  (void)r;
+}
+
+// Transactions: a target change applies to every cue or to none.
+namespace
+{
+/// ColourHSI that can be told to refuse the next region.
+class Refusing : public ColourHSI
+{
+public:
+  bool refuse = false;
+  bool learnTarget(FeatureCache& cache, View view, const cv::Rect& roi, std::string& error) override
+  {
+    if (refuse)
+    {
+      error = "refused for the test";
+      return false;
+    }
+    return ColourHSI::learnTarget(cache, view, roi, error);
+  }
+};
+}  // namespace
+
+TEST(EngineTransactions, AFailedLearnKeepsEveryCuesTarget)
+{
+  Scene scene("pendulum_uncluttered.yaml");
+  auto refusing = std::make_shared<Refusing>();
+  refusing->initialize("texture_like", Parameters());
+  FilterEngine engine(position3D(), { cue<ColourHSI>("colour"), cue<ColourContour>("colour_contour"), refusing },
+                      EngineConfig());
+  const StereoFrame f = scene.frame(0);
+  std::string error;
+  ASSERT_TRUE(engine.learnTarget(f, scene.renderer().targetRoi(0), error)) << error;
+  const std::string before = targets(engine);
+  refusing->refuse = true;
+  EXPECT_FALSE(engine.learnTarget(f, cv::Rect(20, 20, 40, 40), error));
+  EXPECT_NE(error.find("texture_like"), std::string::npos) << error;
+  EXPECT_EQ(targets(engine), before) << "the cues before the refusing one kept the new region";
+}
+
+TEST(EngineTransactions, ATargetFileMissingACueChangesNothing)
+{
+  Scene scene("pendulum_uncluttered.yaml");
+  const StereoFrame f = scene.frame(0);
+  const std::string path = "/tmp/stereo_pf_test_target_" + std::to_string(getpid()) + ".yml";
+  std::string error;
+  {
+    // Saved with the colour histogram only (another configuration), from a region of wall.
+    FilterEngine colour_only(position3D(), { cue<ColourHSI>("colour") }, EngineConfig());
+    ASSERT_TRUE(colour_only.learnTarget(f, cv::Rect(20, 20, 40, 40), error)) << error;
+    ASSERT_TRUE(colour_only.saveTarget(path, error)) << error;
+  }
+  FilterEngine engine(position3D(), defaultCues(), EngineConfig());
+  ASSERT_TRUE(engine.learnTarget(f, scene.renderer().targetRoi(0), error)) << error;
+  const std::string before = targets(engine);
+  EXPECT_FALSE(engine.loadTarget(path, error));
+  EXPECT_NE(error.find("colour_contour"), std::string::npos) << error;
+  EXPECT_NE(error.find("No target was changed"), std::string::npos) << error;
+  EXPECT_EQ(targets(engine), before) << "the colour target was replaced by a failed load";
+
+  // A malformed entry for the second cue: the first one's target is restored.
+  {
+    std::ifstream in(path);
+    std::ofstream out(path + ".2.yml");
+    out << in.rdbuf() << "colour_contour:\n   type: \"stereo_pf/ColourContour\"\n   histogram: oops\n";
+  }
+  EXPECT_FALSE(engine.loadTarget(path + ".2.yml", error));
+  EXPECT_EQ(targets(engine), before) << "a failed load changed a target";
+  std::remove(path.c_str());
+  std::remove((path + ".2.yml").c_str());
+}
+
+int main(int argc, char** argv)
+{
+  testing::InitGoogleTest(&argc, argv);
+  return RUN_ALL_TESTS();
+}
