@@ -238,6 +238,35 @@ TEST(TrackerOutputs, MarkersDeleteTheEstimateWhenInvalid)
   EXPECT_EQ(lines, 1);
 }
 
+// image_geometry asserts that both cameras share their frame and P's fx, fy and cy; with asserts compiled in
+// (Debian) a camera_info pair that differs there used to abort the whole nodelet manager.
+TEST(StereoInput, CameraInfoThatImageGeometryAssertsOnIsHandled)
+{
+  StereoInput input;
+  for (const int index : { 0, 5, 6 })  // fx, fy, cy of P
+  {
+    auto right = info(true);
+    right->P[index] *= 2.0;
+    const Result res = run(input, image(), image(), info(false), right);
+    EXPECT_FALSE(res.ok);
+    EXPECT_EQ(res.reason, DropReason::BadCameraInfo);
+    EXPECT_NE(res.why.find("not a rectified stereo pair"), std::string::npos) << res.why;
+  }
+  // Separate frames per camera, as some drivers publish: results are in the left frame, so that is fine.
+  auto right_frame = info(true);
+  right_frame->header.frame_id = "right_cam";
+  const Result other_frame = run(input, image(), image(), info(false), right_frame);
+  EXPECT_TRUE(other_frame.ok) << other_frame.why;
+  // A calibration refused after image_geometry took it in, then sent again, is refused for the same reason.
+  auto no_baseline = info(true);
+  no_baseline->P[3] = 0.0;
+  const Result first = run(input, image(), image(), info(false), no_baseline);
+  const Result again = run(input, image(), image(), info(false), no_baseline);
+  EXPECT_EQ(first.reason, DropReason::BadCameraInfo);
+  EXPECT_EQ(again.why, first.why);
+  EXPECT_TRUE(run(input, image(), image(), info(false), info(true)).ok);
+}
+
 int main(int argc, char** argv)
 {
   testing::InitGoogleTest(&argc, argv);

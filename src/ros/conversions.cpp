@@ -58,11 +58,20 @@ bool StereoCalibration::update(const sensor_msgs::CameraInfo& left, const sensor
     error = "camera_info has a zero focal length in P (uncalibrated camera?)";
     return false;
   }
-  if (!model_.fromCameraInfo(left, right))
+  // image_geometry asserts that the two cameras share their frame and P's fx, fy and cy: in Debian's build
+  // a failed assert aborts the whole nodelet manager. A rectified pair has equal ones; anything else is refused
+  // here, and the right camera's frame (unused: results are in the left frame) is taken to be the left's.
+  if (left.P[0] != right.P[0] || left.P[5] != right.P[5] || left.P[6] != right.P[6])
   {
-    error = "image_geometry rejected the camera_info pair";
+    error = "left and right camera_info P differ in fx, fy or cy (left " + std::to_string(left.P[0]) + ", " +
+            std::to_string(left.P[5]) + ", " + std::to_string(left.P[6]) + "; right " + std::to_string(right.P[0]) +
+            ", " + std::to_string(right.P[5]) + ", " + std::to_string(right.P[6]) +
+            "): not a rectified stereo pair, they must be equal";
     return false;
   }
+  sensor_msgs::CameraInfo right_in_left_frame = right;
+  right_in_left_frame.header.frame_id = left.header.frame_id;
+  model_.fromCameraInfo(left, right_in_left_frame);  // returns whether it changed, not whether it is valid
   const auto& l = model_.left();
   geometry_ = StereoGeometry(l.fx(), l.fy(), l.cx(), l.cy(), model_.baseline(), static_cast<int>(left.width),
                              static_cast<int>(left.height));
