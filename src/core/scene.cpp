@@ -1,15 +1,19 @@
 // Synthetic stereo scenes: YAML loading and a per-pixel ray-casting renderer (see scene.h).
 #include "stereo_pf/core/scene.h"
+#include "stereo_pf/core/scene_sensor.h"
 
 #include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <initializer_list>
+#include <optional>
 #include <set>
 #include <sstream>
 
 #include <Eigen/Geometry>
 #include <opencv2/imgproc.hpp>
+
+#include "scene_detail.h"
 
 namespace stereo_pf
 {
@@ -86,9 +90,16 @@ bool squareBox(const SceneCamera& cam, const Eigen::Vector3d& c_rel, double r, P
   return true;
 }
 
-// Image extent of any scene object.
-bool objectBox(const SceneCamera& cam, const SceneSphere& s, const Eigen::Vector3d& c_rel, PixelBox& box)
+bool isSolid(const SceneSphere& s)
 {
+  return s.shape == SceneSphere::Shape::Box || s.shape == SceneSphere::Shape::Cylinder;
+}
+
+// Image extent of any scene object at time t.
+bool objectBox(const SceneCamera& cam, const SceneSphere& s, const Eigen::Vector3d& c_rel, double t, PixelBox& box)
+{
+  if (isSolid(s))
+    return scene_detail::solidExtent(cam, s, s.orientation(t), c_rel, box.u0, box.u1, box.v0, box.v1);
   return s.shape == SceneSphere::Shape::Square ? squareBox(cam, c_rel, s.radius, box) :
                                                  sphereBox(cam, c_rel, s.radius, box);
 }
@@ -123,10 +134,16 @@ double raySquare(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, cons
              std::numeric_limits<double>::infinity();
 }
 
-// Ray parameter of the first hit with any scene object at its position `centre`, or +inf.
+// Ray parameter of the first hit with any scene object at its position `centre` at time t, or +inf.
 double rayObject(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, const SceneSphere& s,
-                 const Eigen::Vector3d& centre)
+                 const Eigen::Vector3d& centre, double t)
 {
+  if (isSolid(s))
+  {
+    scene_detail::SolidHit hit;
+    const bool hits = scene_detail::solidRay(s, s.orientation(t), centre - origin, dir, hit);
+    return hits ? hit.t : std::numeric_limits<double>::infinity();
+  }
   return s.shape == SceneSphere::Shape::Square ? raySquare(origin, dir, centre, s.radius) :
                                                  raySphere(origin, dir, centre, s.radius);
 }
@@ -336,11 +353,69 @@ private:
   std::string path_;
 };
 
+// [x, y, z] with every component in [min, max].
+Eigen::Vector3d rangedVec3(const SceneReader& r, const cv::FileNode& n, const std::string& parent, const char* key,
+                           const Eigen::Vector3d* fallback, double min, double max)
+{
+  const Eigen::Vector3d v = r.vec3(n, parent, key, fallback);
+  for (int a = 0; a < 3; ++a)
+    if (!std::isfinite(v[a]) || v[a] < min || v[a] > max)
+    {
+      std::ostringstream s;
+      s << "every component must be in [" << min << ", " << max << "], got " << vecText(v);
+      r.fail(SceneReader::join(parent, key), s.str());
+    }
+  return v;
+}
+
+// The ballistic and random_walk trajectory types.
+Trajectory readNewMotion(const SceneReader& r, const cv::FileNode& n, const std::string& field, const std::string& type)
+{
+  Trajectory tr;
+  if (type == "ballistic")
+  {
+    r.checkKeys(n, field, { "type", "start", "velocity", "gravity", "t0", "floor_y", "restitution" });
+    const Eigen::Vector3d zero = Eigen::Vector3d::Zero(), down = tr.gravity;
+    tr = Trajectory::ballistic(rangedVec3(r, n, field, "start", nullptr, -1e4, 1e4),
+                               rangedVec3(r, n, field, "velocity", &zero, -1e3, 1e3),
+                               rangedVec3(r, n, field, "gravity", &down, -1e3, 1e3),
+                               r.number(n, field, "t0", 0.0, -1e6, 1e6));
+    tr.has_floor = SceneReader::has(n, "floor_y");
+    if (SceneReader::has(n, "restitution") && !tr.has_floor)
+      r.fail(SceneReader::join(field, "restitution"), "only with floor_y (the plane the ball bounces off)");
+    if (tr.has_floor)
+    {
+      tr.floor_y = r.required(n, field, "floor_y", -1e4, 1e4);
+      tr.restitution = r.number(n, field, "restitution", tr.restitution, 0.0, 1.0);
+      if (tr.position.y() > tr.floor_y)
+      {
+        std::ostringstream s;
+        s << "start y " << tr.position.y() << " is below the floor (y is down): start y must be <= floor_y "
+          << tr.floor_y;
+        r.fail(SceneReader::join(field, "start"), s.str());
+      }
+    }
+  }
+  else
+  {
+    r.checkKeys(n, field, { "type", "centre", "extent", "speed", "seed" });
+    const Eigen::Vector3d extent = rangedVec3(r, n, field, "extent", nullptr, 0.0, 100.0);
+    if (!(extent.maxCoeff() > 0.0))
+      r.fail(SceneReader::join(field, "extent"), "must be > 0 on at least one axis (half sizes, metres)");
+    tr = Trajectory::randomWalk(rangedVec3(r, n, field, "centre", nullptr, -1e4, 1e4), extent,
+                                r.number(n, field, "speed", tr.speed, 1e-6, 100.0),
+                                static_cast<uint64_t>(r.integer(n, field, "seed", 1, 0, 2147483647)));
+  }
+  return tr;
+}
+
 Trajectory readTrajectory(const SceneReader& r, const cv::FileNode& n, const std::string& field, double duration)
 {
   if (n.isNone())
     r.fail(field, "missing (required)");
-  const std::string type = r.text(n, field, "type", "", { "static", "linear", "waypoints", "pendulum", "bounce" });
+  const std::string type = r.text(n, field, "type", "",
+                                  { "static", "linear", "waypoints", "pendulum", "bounce", "ballistic",
+                                    "random_walk" });
   Trajectory tr;
   if (type == "static")
   {
@@ -386,6 +461,10 @@ Trajectory readTrajectory(const SceneReader& r, const cv::FileNode& n, const std
                               deg2rad(r.number(n, field, "phase_deg", 0.0, -3600.0, 3600.0)),
                               deg2rad(r.number(n, field, "plane_angle_deg", 0.0, -90.0, 90.0)));
   }
+  else if (type == "ballistic" || type == "random_walk")
+  {
+    tr = readNewMotion(r, n, field, type);
+  }
   else  // bounce
   {
     r.checkKeys(n, field, { "type", "start", "velocity", "box_min", "box_max" });
@@ -404,6 +483,67 @@ void readPresence(const SceneReader& r, const cv::FileNode& n, const std::string
   tr.t_leave = r.number(n, field, "t_leave", tr.t_leave, -1e9, 1e9);
   if (!(tr.t_leave > tr.t_enter))
     r.fail(SceneReader::join(field, "t_leave"), "must be after t_enter");
+}
+
+// An object's shape and the dimensions that go with it; keys of other shapes are errors naming the field.
+void readShape(const SceneReader& r, const cv::FileNode& n, const std::string& f, SceneSphere& s)
+{
+  const std::string shape = r.text(n, f, "shape", "sphere", { "sphere", "square", "box", "cylinder" });
+  s.shape = shape == "square"   ? SceneSphere::Shape::Square :
+            shape == "box"      ? SceneSphere::Shape::Box :
+            shape == "cylinder" ? SceneSphere::Shape::Cylinder :
+                                  SceneSphere::Shape::Sphere;
+  const bool box = s.shape == SceneSphere::Shape::Box, cylinder = s.shape == SceneSphere::Shape::Cylinder;
+  auto only = [&](const char* key, bool allowed, const std::string& why) {
+    if (!allowed && SceneReader::has(n, key))
+      r.fail(SceneReader::join(f, key), why + " (this object is a " + shape + ")");
+  };
+  only("radius", !box, "not for a box: give its edge lengths as size [sx, sy, sz]");
+  only("size", box, "only for shape box");
+  only("height", cylinder, "only for shape cylinder");
+  only("face_colours", box, "only for shape box");
+  only("spin_axis", s.shape != SceneSphere::Shape::Square, "not for a square: it always faces the camera");
+  only("yaw_deg", s.shape != SceneSphere::Shape::Square, "not for a square: it always faces the camera");
+  if (box)
+    s.size = rangedVec3(r, n, f, "size", nullptr, 1e-4, 100.0);
+  else
+    s.radius = r.number(n, f, "radius", s.radius, 1e-4, 100.0);
+  if (cylinder)
+    s.height = r.required(n, f, "height", 1e-4, 100.0);
+}
+
+// Face colours, texture seed and the turn (spin axis, initial yaw) of an object; after readShape() and
+// the pattern.
+void readLookAndTurn(const SceneReader& r, const cv::FileNode& n, const std::string& f, SceneSphere& s)
+{
+  if (SceneReader::has(n, "face_colours"))
+  {
+    const std::string field = f + ".face_colours";
+    const cv::FileNode list = n["face_colours"];
+    if (!list.isSeq() || list.size() != 6)
+      r.fail(field, "must be a list of 6 RGB colours (faces +x, -x, +y, -y, +z, -z), got " +
+                        SceneReader::describe(list));
+    int i = 0;
+    for (cv::FileNodeIterator it = list.begin(); it != list.end(); ++it, ++i)
+    {
+      const std::string element = field + "[" + std::to_string(i) + "]";
+      const std::vector<double> v = r.numbers(*it, element, 3);
+      for (double c : v)
+        if (!(c >= 0.0 && c <= 255.0))
+          r.fail(element, "RGB components must be in [0, 255]");
+      s.face_colours.emplace_back(v[2], v[1], v[0]);
+    }
+  }
+  if (SceneReader::has(n, "texture_seed") && !s.textured)
+    r.fail(f + ".texture_seed", "only with pattern: texture");
+  s.texture_seed = static_cast<uint64_t>(r.integer(n, f, "texture_seed", 1, 0, 2147483647));
+  if (SceneReader::has(n, "spin_axis"))
+  {
+    s.spin_axis = rangedVec3(r, n, f, "spin_axis", nullptr, -1e3, 1e3);
+    if (!(s.spin_axis.norm() > 1e-9))
+      r.fail(f + ".spin_axis", "must not be zero (a direction [x, y, z]; y is down)");
+  }
+  s.yaw = deg2rad(r.number(n, f, "yaw_deg", 0.0, -3600.0, 3600.0));
 }
 
 std::string fileStem(const std::string& path)
@@ -451,6 +591,10 @@ Eigen::Vector3d Trajectory::at(double t) const
         out[a] = reflect(p[a], box_min[a], box_max[a]);
       return out;
     }
+    case Type::Ballistic:
+      return scene_detail::ballisticAt(*this, t);
+    case Type::RandomWalk:
+      return scene_detail::randomWalkAt(*this, t);
   }
   return position;
 }
@@ -482,6 +626,10 @@ std::string Trajectory::validate() const
           return "bounce box_max must exceed box_min on every axis, got box_min " + vecText(box_min) + " box_max " +
                  vecText(box_max);
       return "";
+    case Type::Ballistic:
+      return scene_detail::validateBallistic(*this);
+    case Type::RandomWalk:
+      return scene_detail::validateRandomWalk(*this);
   }
   return "";
 }
@@ -552,6 +700,17 @@ std::string SceneDescription::validate() const
   check(frames > 0, "frames must be > 0");
   check(target_roi_frame >= 0 && target_roi_frame < frames, "target_roi_frame must be in [0, frames)");
   check(noise_sigma >= 0.0, "noise.sigma must be >= 0");
+  check(noise_shot >= 0.0 && noise_shot <= 10.0, "noise.shot must be in [0, 10]");
+  check(camera.row_offset >= -5.0 && camera.row_offset <= 5.0, "camera.row_offset must be in [-5, 5]");
+  const std::string sensor_problems = sensor.validate();
+  check(sensor_problems.empty(), sensor_problems);
+  // A camera cannot expose one frame for longer than the time between two frames.
+  if (sensor.exposure > 1.0 / fps + 1e-12)
+  {
+    std::ostringstream s;
+    s << "sensor.exposure must not exceed the frame period 1/fps = " << 1.0 / fps << " s, got " << sensor.exposure;
+    check(false, s.str());
+  }
   check(min_visible_fraction >= 0.0 && min_visible_fraction <= 1.0, "min_visible_fraction must be in [0, 1]");
   check(light.ambient >= 0.0 && light.ambient <= 1.0, "light.ambient must be in [0, 1]");
   check(light.direction.norm() > 1e-9, "light.direction must not be zero");
@@ -563,6 +722,15 @@ std::string SceneDescription::validate() const
     const std::string f = "objects[" + std::to_string(i) + "]";
     check(s.radius > 0.0, f + ".radius must be > 0");
     check(s.checker_longitude >= 1 && s.checker_latitude >= 1, f + ".checker_squares must be >= 1");
+    check(!(s.checkered && s.textured), f + ".pattern: checker and texture at once");
+    check(s.spin_axis.allFinite() && s.spin_axis.norm() > 1e-9, f + ".spin_axis must be a non-zero vector");
+    if (s.shape == SceneSphere::Shape::Box)
+    {
+      check(s.size.allFinite() && (s.size.array() > 0.0).all(), f + ".size must be > 0 on every axis");
+      check(s.face_colours.empty() || s.face_colours.size() == 6, f + ".face_colours must hold 6 colours");
+    }
+    if (s.shape == SceneSphere::Shape::Cylinder)
+      check(s.height > 0.0, f + ".height must be > 0");
     const std::string t = s.trajectory.validate();
     check(t.empty(), f + ".trajectory: " + t);
   }
@@ -622,7 +790,7 @@ SceneDescription loadScene(const std::string& path)
   const cv::FileNode root = fs.root();
   r.checkKeys(root, "",
               { "name", "fps", "frames", "duration", "target_roi_frame", "min_visible_fraction", "camera", "light",
-                "noise", "background", "objects", "occluders" });
+                "noise", "sensor", "background", "objects", "occluders" });
 
   SceneDescription d;
   d.source = path;
@@ -641,7 +809,7 @@ SceneDescription loadScene(const std::string& path)
   if (SceneReader::has(root, "camera"))
   {
     const cv::FileNode n = root["camera"];
-    r.checkKeys(n, "camera", { "width", "height", "fx", "fy", "cx", "cy", "baseline" });
+    r.checkKeys(n, "camera", { "width", "height", "fx", "fy", "cx", "cy", "baseline", "row_offset" });
     SceneCamera& c = d.camera;
     c.width = r.integer(n, "camera", "width", c.width, 1, 100000);
     c.height = r.integer(n, "camera", "height", c.height, 1, 100000);
@@ -650,6 +818,7 @@ SceneDescription loadScene(const std::string& path)
     c.cx = r.number(n, "camera", "cx", (c.width - 1) / 2.0, -1e6, 1e6);
     c.cy = r.number(n, "camera", "cy", (c.height - 1) / 2.0, -1e6, 1e6);
     c.baseline = r.number(n, "camera", "baseline", c.baseline, 1e-6, 100.0);
+    c.row_offset = r.number(n, "camera", "row_offset", c.row_offset, -5.0, 5.0);
   }
 
   if (SceneReader::has(root, "light"))
@@ -665,9 +834,32 @@ SceneDescription loadScene(const std::string& path)
   if (SceneReader::has(root, "noise"))
   {
     const cv::FileNode n = root["noise"];
-    r.checkKeys(n, "noise", { "sigma", "seed" });
+    r.checkKeys(n, "noise", { "sigma", "seed", "shot" });
     d.noise_sigma = r.number(n, "noise", "sigma", d.noise_sigma, 0.0, 255.0);
+    d.noise_shot = r.number(n, "noise", "shot", d.noise_shot, 0.0, 10.0);
     d.seed = static_cast<uint64_t>(r.integer(n, "noise", "seed", 0, 0, 2147483647));
+  }
+
+  if (SceneReader::has(root, "sensor"))
+  {
+    const cv::FileNode n = root["sensor"];
+    r.checkKeys(n, "sensor",
+                { "exposure", "blur_samples", "vignetting", "gain_jitter", "right_gain", "right_gain_jitter",
+                  "jpeg_quality", "encoding", "camera_info" });
+    SceneSensor& s = d.sensor;
+    s.exposure = r.number(n, "sensor", "exposure", s.exposure, 0.0, 1.0);
+    s.blur_samples = r.integer(n, "sensor", "blur_samples", s.blur_samples, 0, 64);
+    s.vignetting = r.number(n, "sensor", "vignetting", s.vignetting, 0.0, 0.9);
+    s.gain_jitter = r.number(n, "sensor", "gain_jitter", s.gain_jitter, 0.0, 0.5);
+    s.right_gain = r.number(n, "sensor", "right_gain", s.right_gain, 0.5, 2.0);
+    s.right_gain_jitter = r.number(n, "sensor", "right_gain_jitter", s.right_gain_jitter, 0.0, 0.5);
+    s.jpeg_quality = r.integer(n, "sensor", "jpeg_quality", s.jpeg_quality, 0, 100);
+    const std::string encoding =
+        r.text(n, "sensor", "encoding", "bgr8", { "bgr8", "rgb8", "mono8", "mono16", "bayer_grbg8" });
+    encodingFromName(encoding, s.encoding);
+    s.camera_info = r.text(n, "sensor", "camera_info", "full", { "full", "size_only" }) == "size_only" ?
+                        SceneCameraInfo::SizeOnly :
+                        SceneCameraInfo::Full;
   }
 
   if (SceneReader::has(root, "background"))
@@ -698,15 +890,17 @@ SceneDescription loadScene(const std::string& path)
     const cv::FileNode n = *it;
     const std::string f = "objects[" + std::to_string(index) + "]";
     r.checkKeys(n, f,
-                { "name", "shape", "radius", "colour", "pattern", "colour2", "checker_squares", "spin_deg_per_s",
-                  "string", "trajectory", "t_enter", "t_leave" });
+                { "name", "shape", "radius", "size", "height", "colour", "face_colours", "pattern", "colour2",
+                  "checker_squares", "texture_seed", "spin_deg_per_s", "spin_axis", "yaw_deg", "string", "trajectory",
+                  "t_enter", "t_leave" });
     SceneSphere s;
     s.name = r.text(n, f, "name", index == 0 ? "target" : "object" + std::to_string(index));
-    s.shape = r.text(n, f, "shape", "sphere", { "sphere", "square" }) == "square" ? SceneSphere::Shape::Square :
-                                                                                    SceneSphere::Shape::Sphere;
-    s.radius = r.number(n, f, "radius", s.radius, 1e-4, 100.0);
+    readShape(r, n, f, s);
     s.colour = r.colour(n, f, "colour", s.colour);
-    s.checkered = r.text(n, f, "pattern", "plain", { "plain", "checker" }) == "checker";
+    const std::string pattern = r.text(n, f, "pattern", "plain", { "plain", "checker", "texture" });
+    s.checkered = pattern == "checker";
+    s.textured = pattern == "texture";
+    readLookAndTurn(r, n, f, s);
     s.colour2 = r.colour(n, f, "colour2", s.colour2);
     if (SceneReader::has(n, "checker_squares"))
     {
@@ -762,11 +956,26 @@ SceneDescription loadScene(const std::string& path)
 // --------------------------------------------------------------------------------------------------
 // Rendering
 
-SceneRenderer::SceneRenderer(const SceneDescription& scene) : scene_(scene)
+namespace
 {
-  const std::string problems = scene_.validate();
+// Validate before any member is built from the description (the sensor model sizes buffers from it).
+const SceneDescription& checked(const SceneDescription& scene)
+{
+  const std::string problems = scene.validate();
   if (!problems.empty())
-    throw SceneError("scene '" + scene_.name + "' cannot be rendered: " + problems);
+    throw SceneError("scene '" + scene.name + "' cannot be rendered: " + problems);
+  return scene;
+}
+}  // namespace
+
+SceneRenderer::SceneRenderer(const SceneDescription& scene)
+  : scene_(checked(scene))
+  , sensor_(scene.sensor, scene.noise_sigma, scene.noise_shot, scene.seed,
+            cv::Size(scene.camera.width, scene.camera.height), scene.camera.cx, scene.camera.cy)
+{
+  // Rays through row v - row_offset of the ideal right camera put its content row_offset rows lower.
+  imaging_[0] = imaging_[1] = scene_.camera;
+  imaging_[1].cy += scene_.camera.row_offset;
   light_ = scene_.light.direction.normalized();
   renderBackdrop();
 }
@@ -912,10 +1121,11 @@ void SceneRenderer::renderBackdrop()
   for (int v = 0; v < 2; ++v)
   {
     const double ox = v == 0 ? 0.0 : cam.baseline;
+    const double cy = imaging_[v].cy;  // the right camera's rows may be offset (camera.row_offset)
     cv::Mat map_x(cam.height, cam.width, CV_32F), map_y(cam.height, cam.width, CV_32F);
     for (int row = 0; row < cam.height; ++row)
     {
-      const float ty = static_cast<float>(((row - cam.cy) / cam.fy * depth - y_min) / texel);
+      const float ty = static_cast<float>(((row - cy) / cam.fy * depth - y_min) / texel);
       float* mx = map_x.ptr<float>(row);
       float* my = map_y.ptr<float>(row);
       for (int col = 0; col < cam.width; ++col)
@@ -934,9 +1144,8 @@ void SceneRenderer::render(int k, cv::Mat& left_bgr, cv::Mat& right_bgr, bool wi
   renderView(k, View::Right, right_bgr, with_noise);
 }
 
-void SceneRenderer::renderView(int k, View view, cv::Mat& bgr, bool with_noise)
+void SceneRenderer::drawScene(double t, View view, cv::Mat& bgr)
 {
-  const double t = stamp(k);
   const int v = static_cast<int>(view);
   backdrop_[v].copyTo(bgr);
   backdrop_depth_[v].copyTo(depth_);
@@ -947,6 +1156,8 @@ void SceneRenderer::renderView(int k, View view, cv::Mat& bgr, bool with_noise)
       continue;
     if (s.shape == SceneSphere::Shape::Square)
       drawSquare(s, t, view, bgr, depth_);
+    else if (isSolid(s))
+      drawSolid(s, t, view, bgr, depth_);
     else
       drawSphere(s, t, view, bgr, depth_);
   }
@@ -954,13 +1165,11 @@ void SceneRenderer::renderView(int k, View view, cv::Mat& bgr, bool with_noise)
   for (const SceneSphere& s : scene_.objects)
     if (s.draw_string && s.trajectory.present(t))
       drawString(s, t, view, bgr, depth_);
-  if (with_noise && scene_.noise_sigma > 0.0)
-    addNoise(k, view, bgr);
 }
 
 void SceneRenderer::drawOccluders(double t, View view, cv::Mat& img, cv::Mat& depth) const
 {
-  const SceneCamera& cam = scene_.camera;
+  const SceneCamera& cam = imagingCamera(view);
   const Eigen::Vector3d origin = cameraOrigin(view);
   for (const SceneOccluder& o : scene_.occluders)
   {
@@ -1002,7 +1211,7 @@ void SceneRenderer::drawOccluders(double t, View view, cv::Mat& img, cv::Mat& de
 
 void SceneRenderer::drawSphere(const SceneSphere& s, double t, View view, cv::Mat& img, cv::Mat& depth) const
 {
-  const SceneCamera& cam = scene_.camera;
+  const SceneCamera& cam = imagingCamera(view);
   const Eigen::Vector3d centre = s.trajectory.at(t);
   const Eigen::Vector3d origin = cameraOrigin(view);
   const Eigen::Vector3d c = centre - origin;  // centre seen from this camera
@@ -1019,7 +1228,14 @@ void SceneRenderer::drawSphere(const SceneSphere& s, double t, View view, cv::Ma
 
   const double r = s.radius, r2 = r * r, c2 = c.squaredNorm();
   const double ambient = scene_.light.ambient;
-  const double spin = s.spin * t;
+  const double spin = s.spin * t + s.yaw;
+  // Patterns turning about the vertical axis keep the longitude shift below; any other axis, and the
+  // texture, read the surface point in the ball's own frame.
+  const bool upright = s.spin_axis.x() == 0.0 && s.spin_axis.z() == 0.0 && s.spin_axis.y() > 0.0;
+  const Eigen::Matrix3d to_ball = s.orientation(t).transpose();
+  std::optional<scene_detail::TextureField> texture;
+  if (s.textured)
+    texture.emplace(s);
   for (int row = v0; row <= v1; ++row)
   {
     const double b = (row - cam.cy) / cam.fy;
@@ -1048,12 +1264,17 @@ void SceneRenderer::drawSphere(const SceneSphere& s, double t, View view, cv::Ma
       if (s.checkered)
       {
         // Longitude around the vertical axis (0 facing the camera), latitude from the -y (up) pole.
-        const double lon = std::atan2(n.x(), -n.z()) + spin;
-        const double lat = std::asin(std::clamp(-n.y(), -1.0, 1.0));
+        const Eigen::Vector3d m = upright ? n : Eigen::Vector3d(to_ball * n);
+        const double lon = std::atan2(m.x(), -m.z()) + (upright ? spin : 0.0);
+        const double lat = std::asin(std::clamp(-m.y(), -1.0, 1.0));
         const long i = static_cast<long>(std::floor(lon / (2.0 * kPi) * s.checker_longitude));
         const long j = static_cast<long>(std::floor((lat + kPi / 2) / kPi * s.checker_latitude));
         if (((i + j) % 2 + 2) % 2 == 1)
           albedo = s.colour2;
+      }
+      else if (texture)
+      {
+        albedo = texture->mix(albedo, to_ball * n);
       }
       const double shade = ambient + (1.0 - ambient) * std::max(0.0, n.dot(light_));
       for (int ch = 0; ch < 3; ++ch)
@@ -1066,7 +1287,7 @@ void SceneRenderer::drawSphere(const SceneSphere& s, double t, View view, cv::Ma
 
 void SceneRenderer::drawSquare(const SceneSphere& s, double t, View view, cv::Mat& img, cv::Mat& depth) const
 {
-  const SceneCamera& cam = scene_.camera;
+  const SceneCamera& cam = imagingCamera(view);
   const Eigen::Vector3d c = s.trajectory.at(t) - cameraOrigin(view);
   PixelBox box;
   if (!squareBox(cam, c, s.radius, box))
@@ -1080,6 +1301,9 @@ void SceneRenderer::drawSquare(const SceneSphere& s, double t, View view, cv::Ma
   // A flat face has one normal (-z), so one Lambertian shade for the whole patch.
   const double shade = scene_.light.ambient + (1.0 - scene_.light.ambient) * std::max(0.0, -light_.z());
   const double side = 2.0 * s.radius;
+  std::optional<scene_detail::TextureField> texture;
+  if (s.textured)
+    texture.emplace(s);
   for (int row = v0; row <= v1; ++row)
   {
     // Edge pixels get their area coverage as alpha, as the occluders do.
@@ -1104,6 +1328,13 @@ void SceneRenderer::drawSquare(const SceneSphere& s, double t, View view, cv::Ma
         if ((i + j) % 2 == 1)
           albedo = s.colour2;
       }
+      else if (texture)
+      {
+        // The patch's own coordinates in half sides (the square does not turn).
+        const Eigen::Vector3d q(((col - cam.cx) / cam.fx * z - c.x()) / s.radius,
+                                ((row - cam.cy) / cam.fy * z - c.y()) / s.radius, 0.0);
+        albedo = texture->mix(albedo, q);
+      }
       for (int ch = 0; ch < 3; ++ch)
         px[col][ch] = cv::saturate_cast<uint8_t>(a * shade * albedo[ch] + (1.0 - a) * px[col][ch]);
       if (a >= 0.5)
@@ -1116,7 +1347,7 @@ void SceneRenderer::drawString(const SceneSphere& s, double t, View view, cv::Ma
 {
   if (s.trajectory.type != Trajectory::Type::Pendulum)
     return;
-  const SceneCamera& cam = scene_.camera;
+  const SceneCamera& cam = imagingCamera(view);
   const Eigen::Vector3d origin = cameraOrigin(view);
   const Eigen::Vector3d a = s.trajectory.pivot - origin;
   const Eigen::Vector3d b = s.trajectory.at(t) - origin;
@@ -1137,15 +1368,6 @@ void SceneRenderer::drawString(const SceneSphere& s, double t, View view, cv::Ma
     if (static_cast<float>(p.z()) < depth.at<float>(row, col))
       img.at<cv::Vec3b>(row, col) = dark;
   }
-}
-
-void SceneRenderer::addNoise(int k, View view, cv::Mat& img)
-{
-  // One RNG state per (seed, frame, view): frames can be rendered in any order with identical results.
-  cv::RNG rng(mix64(scene_.seed ^ mix64(static_cast<uint64_t>(k) * 2 + static_cast<uint64_t>(view) + 1)));
-  noise_.create(img.rows, img.cols, CV_16SC3);
-  rng.fill(noise_, cv::RNG::NORMAL, cv::Scalar::all(0), cv::Scalar::all(scene_.noise_sigma));
-  cv::add(img, noise_, img, cv::noArray(), CV_8U);
 }
 
 // --------------------------------------------------------------------------------------------------
@@ -1169,7 +1391,7 @@ double SceneRenderer::nearestOtherHit(size_t i, double t, const Eigen::Vector3d&
   {
     const SceneSphere& s = scene_.objects[j];
     if (j != i && s.trajectory.present(t))
-      best = std::min(best, rayObject(origin, dir, s, s.trajectory.at(t)));
+      best = std::min(best, rayObject(origin, dir, s, s.trajectory.at(t), t));
   }
   for (const SceneOccluder& o : scene_.occluders)
   {
@@ -1196,7 +1418,7 @@ double SceneRenderer::visibleFraction(size_t i, int k, View view) const
   const Eigen::Vector3d origin = cameraOrigin(view);
   const Eigen::Vector3d centre = s.trajectory.at(t);
   PixelBox box;
-  if (!objectBox(cam, s, centre - origin, box))
+  if (!objectBox(cam, s, centre - origin, t, box))
     return 0.0;
   // Sample the silhouette on a grid of at most ~48 x 48 rays: plenty for a 50 % decision.
   const double step = std::max(1.0, std::max(box.u1 - box.u0, box.v1 - box.v0) / 48.0);
@@ -1206,7 +1428,7 @@ double SceneRenderer::visibleFraction(size_t i, int k, View view) const
     for (double u = box.u0 + step / 2; u < box.u1; u += step)
     {
       const Eigen::Vector3d dir((u - cam.cx) / cam.fx, (v - cam.cy) / cam.fy, 1.0);
-      const double hit = rayObject(origin, dir, s, centre);
+      const double hit = rayObject(origin, dir, s, centre, t);
       if (!std::isfinite(hit))
         continue;
       ++total;
@@ -1225,7 +1447,7 @@ cv::Rect SceneRenderer::objectRoi(size_t i, int k, View view) const
   if (!s.trajectory.present(t))
     return cv::Rect();
   PixelBox box;
-  if (!objectBox(scene_.camera, s, s.trajectory.at(t) - cameraOrigin(view), box))
+  if (!objectBox(scene_.camera, s, s.trajectory.at(t) - cameraOrigin(view), t, box))
     return cv::Rect();
   // Pixels whose centres lie inside the silhouette's extent.
   const int x0 = static_cast<int>(std::ceil(box.u0)), x1 = static_cast<int>(std::floor(box.u1));

@@ -4,9 +4,11 @@
 // Topics (all stamps identical per stereo frame, frame_id "stereo_camera_optical_frame", the left
 // rectified camera's optical frame; bag time = header stamp; frame k is stamped 1000 s + k / fps so
 // the output is deterministic):
-//   stereo_camera/left/image_raw, stereo_camera/right/image_raw      sensor_msgs/Image, bgr8
+//   stereo_camera/left/image_raw, stereo_camera/right/image_raw      sensor_msgs/Image, bgr8 (or the
+//       scene's sensor.encoding: rgb8, mono8, mono16, bayer_grbg8)
 //   stereo_camera/left/camera_info, stereo_camera/right/camera_info  sensor_msgs/CameraInfo (rectified:
-//       plumb_bob with zero D, R = I, P[3] = -fx * baseline on the right camera)
+//       plumb_bob with zero D, R = I, P[3] = -fx * baseline on the right camera; with the scene's
+//       sensor.camera_info: size_only, only width and height, as an uncalibrated camera1394stereo)
 //   ground_truth/target          geometry_msgs/PointStamped, centre of the target (first object)
 //   ground_truth/target_roi      sensor_msgs/RegionOfInterest, its bounding box in the left image
 //   ground_truth/target_visible  std_msgs/Bool, present and at least half visible in both images
@@ -37,6 +39,7 @@
 #include <std_msgs/Bool.h>
 
 #include "stereo_pf/core/scene.h"
+#include "stereo_pf/core/scene_sensor.h"
 
 namespace
 {
@@ -49,7 +52,7 @@ void usage(std::ostream& out)
          "  --frames N          render N frames instead of the scene's count\n"
          "  --seed S            sensor noise seed (overrides the scene's noise.seed)\n"
          "  --compression C     bag chunk compression: none (default), lz4 or bz2\n"
-         "  --dump-png DIR      also write left/right PNGs of some frames into DIR\n"
+         "  --dump-png DIR      also write left/right PNGs (BGR, before sensor.encoding) of some frames into DIR\n"
          "  --dump-frames LIST  comma-separated frame indices for --dump-png (default: target_roi_frame)\n"
          "  --quiet             no progress output\n";
 }
@@ -64,12 +67,16 @@ bool parseInt(const std::string& text, long long min, long long max, long long& 
   return true;
 }
 
-sensor_msgs::CameraInfo cameraInfo(const stereo_pf::StereoGeometry& g, bool right, const std_msgs::Header& header)
+sensor_msgs::CameraInfo cameraInfo(const stereo_pf::StereoGeometry& g, bool right, const std_msgs::Header& header,
+                                   stereo_pf::SceneCameraInfo mode)
 {
   sensor_msgs::CameraInfo info;
   info.header = header;
   info.width = static_cast<uint32_t>(g.width());
   info.height = static_cast<uint32_t>(g.height());
+  // What camera1394stereo publishes when its calibration file does not fit the camera: the size alone.
+  if (mode == stereo_pf::SceneCameraInfo::SizeOnly)
+    return info;
   info.distortion_model = "plumb_bob";
   info.D.assign(5, 0.0);
   info.K = { g.fx(), 0.0, g.cx(), 0.0, g.fy(), g.cy(), 0.0, 0.0, 1.0 };
@@ -220,7 +227,8 @@ int main(int argc, char** argv)
 
   const stereo_pf::StereoGeometry geometry = renderer->geometry();
   const auto start = std::chrono::steady_clock::now();
-  cv::Mat left, right;
+  cv::Mat left, right, encoded;
+  const std::string encoding = stereo_pf::encodingName(scene.sensor.encoding);
   int visible = 0;
   try
   {
@@ -236,12 +244,14 @@ int main(int argc, char** argv)
       const ros::Time time = header.stamp;
 
       sensor_msgs::Image image;
-      cv_bridge::CvImage(header, "bgr8", left).toImageMsg(image);
+      stereo_pf::encodeImage(left, scene.sensor.encoding, encoded);
+      cv_bridge::CvImage(header, encoding, encoded).toImageMsg(image);
       bag.write("stereo_camera/left/image_raw", time, image);
-      cv_bridge::CvImage(header, "bgr8", right).toImageMsg(image);
+      stereo_pf::encodeImage(right, scene.sensor.encoding, encoded);
+      cv_bridge::CvImage(header, encoding, encoded).toImageMsg(image);
       bag.write("stereo_camera/right/image_raw", time, image);
-      bag.write("stereo_camera/left/camera_info", time, cameraInfo(geometry, false, header));
-      bag.write("stereo_camera/right/camera_info", time, cameraInfo(geometry, true, header));
+      bag.write("stereo_camera/left/camera_info", time, cameraInfo(geometry, false, header, scene.sensor.camera_info));
+      bag.write("stereo_camera/right/camera_info", time, cameraInfo(geometry, true, header, scene.sensor.camera_info));
 
       const Eigen::Vector3d p = renderer->targetPosition(k);
       geometry_msgs::PointStamped target;

@@ -438,11 +438,12 @@ int main(int argc, char** argv)
         std::printf("  %.2f ms\n", ms);
       }
     }
+    // Reasons first: when nothing was usable they are the explanation (e.g. an uncalibrated camera_info).
+    for (const auto& kv : source.dropReasons())
+      std::cerr << "track_bag: warning: dropped " << kv.second << " frame(s): " << kv.first << "\n";
     if (!learned)
       throw std::runtime_error("the bag has no usable frame at or after --target-frame " +
                                std::to_string(opt.target_frame));
-    for (const auto& kv : source.dropReasons())
-      std::cerr << "track_bag: warning: dropped " << kv.second << " frame(s): " << kv.first << "\n";
     if (recorder.records().empty())
       throw std::runtime_error("no frame could be tracked");
     std::cout << stereo_pf::summarise(recorder.records()).line() << std::endl;

@@ -1,0 +1,233 @@
+#include "stereo_pf/core/acquisition.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+namespace stereo_pf
+{
+std::string boxText(const cv::Rect& box)
+{
+  std::ostringstream o;
+  o << box.x << "," << box.y << "," << box.width << "," << box.height;
+  return o.str();
+}
+
+namespace
+{
+BoxMatch failure(const cv::Rect& box, const std::string& why)
+{
+  BoxMatch m;
+  m.error = "box " + boxText(box) + ": " + why;
+  return m;
+}
+
+/// The weighted template: for each used pixel of the left window, its offset in the window, its weight and
+/// its channel values with each channel's weighted mean removed.
+struct Template
+{
+  std::vector<cv::Point> offsets;
+  std::vector<float> weights;
+  std::vector<float> centred;  ///< offsets.size() * channels values
+  double norm2 = 0.0;          ///< sum of w * centred^2
+  double weight_sum = 0.0;     ///< sum of w over pixels
+};
+
+/// Where a sphere's image extends along one image axis: the centre and half-size of the interval between
+/// the two planes through the optical centre that touch the sphere (exact for a pinhole camera; `c` is the
+/// centre's coordinate along that axis, `z` its depth, `f` the focal length along that axis).
+struct Extent
+{
+  double centre = 0.0;
+  double half = 0.0;
+};
+Extent sphereExtent(double c, double z, double r, double f)
+{
+  const double d = std::hypot(c, z);
+  if (!(r < d) || !(z > 0.0))
+    return { f * c / z, 0.0 };
+  const double a = std::atan2(c, z), b = std::asin(r / d);
+  const double lo = f * std::tan(a - b), hi = f * std::tan(a + b);
+  return { 0.5 * (lo + hi), 0.5 * (hi - lo) };
+}
+
+/// The sphere whose images have box centres (left u, v), right u and box half-sizes (hu, hv): starts from
+/// the triangulated box centres and removes the perspective shift of a sphere's image from the projection
+/// of its centre (which grows with the sphere's angular size and its distance off the axis).
+void sphereFromBoxes(const StereoGeometry& g, const Pixel& left, double right_u, double hu, double hv,
+                     Eigen::Vector3d& centre, double& radius)
+{
+  g.triangulate(left, right_u, centre);
+  radius = 0.5 * (hu * centre.z() / g.fx() + hv * centre.z() / g.fy());
+  for (int it = 0; it < 8; ++it)
+  {
+    const Extent eu = sphereExtent(centre.x(), centre.z(), radius, g.fx());
+    const Extent ev = sphereExtent(centre.y(), centre.z(), radius, g.fy());
+    const Extent er = sphereExtent(centre.x() - g.baseline(), centre.z(), radius, g.fx());
+    if (!(eu.half > 0.0 && ev.half > 0.0))
+      return;
+    const Pixel corrected{ left.u - (eu.centre - g.fx() * centre.x() / centre.z()),
+                           left.v - (ev.centre - g.fy() * centre.y() / centre.z()) };
+    const double corrected_right = right_u - (er.centre - g.fx() * (centre.x() - g.baseline()) / centre.z());
+    Eigen::Vector3d next;
+    if (!g.triangulate(corrected, corrected_right, next))
+      return;
+    centre = next;
+    radius *= 0.5 * (hu / eu.half + hv / ev.half);
+  }
+}
+}  // namespace
+
+BoxMatch matchBox(const StereoFrame& frame, const cv::Rect& box, const BoxMatchOptions& o)
+{
+  const std::string invalid = frame.validate();
+  if (!invalid.empty())
+    return failure(box, "unusable frame: " + invalid);
+  const cv::Rect image(0, 0, frame.left.cols, frame.left.rows);
+  if (box.width < 3 || box.height < 3)
+    return failure(box, "too small to match (at least 3x3 pixels)");
+  if ((box & image) != box)
+    return failure(box, "not inside the " + std::to_string(image.width) + "x" + std::to_string(image.height) +
+                            " image");
+
+  // The window: the box grown to ring_scale, clipped to the image.
+  const double cu = box.x + (box.width - 1) / 2.0, cv_ = box.y + (box.height - 1) / 2.0;
+  const double hu = box.width / 2.0, hv = box.height / 2.0;
+  const double scale = std::max(1.0, o.ring_scale);
+  const cv::Rect grown(static_cast<int>(std::floor(cu - hu * scale + 0.5)),
+                       static_cast<int>(std::floor(cv_ - hv * scale + 0.5)), static_cast<int>(std::ceil(2 * hu * scale)),
+                       static_cast<int>(std::ceil(2 * hv * scale)));
+  const cv::Rect window = grown & image;
+
+  cv::Mat left, right;
+  frame.left.convertTo(left, CV_32F);
+  frame.right.convertTo(right, CV_32F);
+  const int channels = left.channels();
+
+  // Weights: the inscribed ellipse counts fully, the ring around it (the outline against the surroundings)
+  // partly; the window's corners not at all.
+  Template t;
+  std::vector<double> sum(channels, 0.0);
+  for (int y = window.y; y < window.y + window.height; ++y)
+  {
+    const float* row = left.ptr<float>(y);
+    for (int x = window.x; x < window.x + window.width; ++x)
+    {
+      const double du = (x - cu) / hu, dv = (y - cv_) / hv;
+      const double r = std::sqrt(du * du + dv * dv);
+      const double w = r <= 1.0 ? 1.0 : (r <= scale ? o.ring_weight : 0.0);
+      if (w <= 0.0)
+        continue;
+      t.offsets.emplace_back(x - window.x, y - window.y);
+      t.weights.push_back(static_cast<float>(w));
+      for (int c = 0; c < channels; ++c)
+      {
+        t.centred.push_back(row[x * channels + c]);
+        sum[c] += w * row[x * channels + c];
+      }
+      t.weight_sum += w;
+    }
+  }
+  for (size_t i = 0; i < t.offsets.size(); ++i)
+    for (int c = 0; c < channels; ++c)
+    {
+      float& v = t.centred[i * channels + c];
+      v = static_cast<float>(v - sum[c] / t.weight_sum);
+      t.norm2 += t.weights[i] * static_cast<double>(v) * v;
+    }
+  // Under one grey level of spread: nothing to correlate (a flat box on a flat background).
+  if (t.norm2 < t.weight_sum * 1.0)
+    return failure(box, "has no contrast to match in the right image (a uniform region)");
+
+  // Candidate disparities: 0 (infinitely far) up to where the window leaves the right image.
+  const int max_d = window.x;
+  BoxMatch m;
+  m.first_disparity = 0;
+  m.scores.assign(max_d + 1, -1.0);
+  for (int d = 0; d <= max_d; ++d)
+  {
+    double s_sum[4] = { 0.0, 0.0, 0.0, 0.0 }, s2_sum = 0.0, cross = 0.0;
+    for (size_t i = 0; i < t.offsets.size(); ++i)
+    {
+      const float* px = right.ptr<float>(window.y + t.offsets[i].y) + (window.x - d + t.offsets[i].x) * channels;
+      const double w = t.weights[i];
+      for (int c = 0; c < channels; ++c)
+      {
+        s_sum[c] += w * px[c];
+        s2_sum += w * px[c] * px[c];
+        cross += w * t.centred[i * channels + c] * px[c];
+      }
+    }
+    // Per channel, sum w (t - mt)(s - ms) = sum w (t - mt) s, since sum w (t - mt) = 0.
+    double var_s = s2_sum;
+    for (int c = 0; c < channels; ++c)
+      var_s -= s_sum[c] * s_sum[c] / t.weight_sum;
+    m.scores[d] = var_s > 1e-9 ? cross / std::sqrt(t.norm2 * var_s) : 0.0;
+  }
+
+  const int best = static_cast<int>(std::max_element(m.scores.begin(), m.scores.end()) - m.scores.begin());
+  m.score = m.scores[best];
+  // The strongest other peak, far enough from the best not to be its own shoulder.
+  const int apart = std::max(2, box.width / 2);
+  for (int d = 0; d <= max_d; ++d)
+  {
+    if (std::abs(d - best) <= apart)
+      continue;
+    const bool peak = (d == 0 || m.scores[d] >= m.scores[d - 1]) && (d == max_d || m.scores[d] >= m.scores[d + 1]);
+    if (peak && m.scores[d] > m.second_score)
+    {
+      m.second_score = m.scores[d];
+      m.second_disparity = d;
+    }
+  }
+
+  std::ostringstream why;
+  why.precision(2);
+  why.setf(std::ios::fixed);
+  if (m.score < o.min_score)
+  {
+    why << "no match in the right image along rows " << box.y << ".." << box.y + box.height - 1
+        << " (best correlation " << m.score << " at disparity " << best << ", below " << o.min_score << ")";
+    BoxMatch f = failure(box, why.str());
+    f.scores = m.scores;
+    return f;
+  }
+  if (m.second_score > m.score - o.ambiguity_margin)
+  {
+    why << "ambiguous: it matches the right image at disparity " << best << " (correlation " << m.score
+        << ") and at " << m.second_disparity << " (" << m.second_score
+        << "); draw a tighter box or teach the target on a frame where only one such object is in view";
+    BoxMatch f = failure(box, why.str());
+    f.scores = m.scores;
+    f.second_score = m.second_score;
+    f.second_disparity = m.second_disparity;
+    return f;
+  }
+
+  // Sub-pixel: the vertex of the parabola through the best score and its neighbours.
+  double d = best;
+  if (best > 0 && best < max_d)
+  {
+    const double a = m.scores[best - 1], b = m.scores[best], c = m.scores[best + 1];
+    const double curvature = a - 2 * b + c;
+    if (curvature < 0.0)
+      d += std::clamp(0.5 * (a - c) / curvature, -0.5, 0.5);
+  }
+  if (d < o.min_disparity)
+  {
+    why << "too far to measure: disparity " << d << " px is below " << o.min_disparity << " px";
+    return failure(box, why.str());
+  }
+
+  const StereoGeometry& g = frame.geometry;
+  m.ok = true;
+  m.disparity = d;
+  m.left = Pixel{ cu, cv_ };
+  m.right = Pixel{ cu - d, cv_ };
+  sphereFromBoxes(g, m.left, m.right.u, hu, hv, m.centre, m.radius);
+  const double z = m.centre.z();
+  m.depth_sigma = z * z / (g.fx() * g.baseline()) * 0.25;
+  return m;
+}
+
+}  // namespace stereo_pf

@@ -1,0 +1,196 @@
+// Tests of acquisition from a box (matchBox): depth and size from the box's match in the right image, on
+// rendered scenes of several sizes, ranges, textures and encodings, and the errors for unusable boxes.
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include <opencv2/imgproc.hpp>
+
+#include "stereo_pf/core/acquisition.h"
+#include "stereo_pf/core/scene.h"
+
+using stereo_pf::BoxMatch;
+using stereo_pf::matchBox;
+using stereo_pf::SceneDescription;
+using stereo_pf::SceneRenderer;
+using stereo_pf::SceneSphere;
+using stereo_pf::StereoFrame;
+using stereo_pf::Trajectory;
+
+namespace
+{
+SceneSphere ball(double radius, const Eigen::Vector3d& at, const cv::Vec3d& bgr = cv::Vec3d(20, 120, 255))
+{
+  SceneSphere s;
+  s.radius = radius;
+  s.colour = bgr;
+  s.trajectory = Trajectory::fixed(at);
+  return s;
+}
+
+SceneDescription scene(const std::vector<SceneSphere>& objects, double background_depth, bool cluttered = false)
+{
+  SceneDescription d;
+  d.frames = 1;
+  d.noise_sigma = 2.0;
+  d.seed = 3;
+  d.objects = objects;
+  d.background.depth = background_depth;
+  if (cluttered)
+    d.background.type = stereo_pf::SceneBackground::Type::Cluttered;
+  return d;
+}
+
+// Renders frame 0 into `left`/`right` (kept alive by the caller) and returns the frame with the box.
+StereoFrame render(const SceneDescription& d, cv::Mat& left, cv::Mat& right, cv::Rect& box)
+{
+  SceneRenderer r(d);
+  r.render(0, left, right);
+  box = r.targetRoi(0);
+  StereoFrame f;
+  f.left = left;
+  f.right = right;
+  f.geometry = r.geometry();
+  return f;
+}
+
+// The size error a box quantised to whole pixels can explain: half a pixel on each side, at depth z.
+double sizeTolerance(double radius, double z, double fx)
+{
+  return std::max(0.03 * radius, 0.6 * z / fx);
+}
+}  // namespace
+
+TEST(MatchBox, DepthFromDisparityWhateverTheSize)
+{
+  // 2 cm, 3.5 cm and 8 cm balls at near, middle and far ranges: the depth comes from the disparity, so it
+  // must not depend on the size (an assumed size would bias it by the size ratio).
+  for (double radius : { 0.02, 0.035, 0.08 })
+    for (double z : { 0.6, 1.3, 3.0 })
+    {
+      SCOPED_TRACE("radius " + std::to_string(radius) + " z " + std::to_string(z));
+      cv::Mat l, r;
+      cv::Rect box;
+      const Eigen::Vector3d truth(0.1 * z, -0.05 * z, z);
+      const StereoFrame f = render(scene({ ball(radius, truth) }, z + 1.5), l, r, box);
+      const BoxMatch m = matchBox(f, box);
+      ASSERT_TRUE(m.ok) << m.error;
+      // The disparity measured is that of the two images' boxes (a near ball's image is displaced outward
+      // from its centre's projection, differently in each camera); the boxes are whole pixels.
+      const cv::Rect right_box =
+          SceneRenderer(scene({ ball(radius, truth) }, z + 1.5)).objectRoi(0, 0, stereo_pf::View::Right);
+      EXPECT_NEAR(m.disparity, (box.x + box.width / 2.0) - (right_box.x + right_box.width / 2.0), 0.75);
+      EXPECT_LT(std::abs(m.centre.z() - z) / z, 0.01);
+      EXPECT_LT((m.centre - truth).norm() / z, 0.015);
+      EXPECT_NEAR(m.radius, radius, sizeTolerance(radius, z, f.geometry.fx()));
+      EXPECT_GT(m.score, 0.9);
+    }
+}
+
+TEST(MatchBox, AcquisitionWithinThreePercentOnARenderedScene)
+{
+  // The acceptance: depth and size within 3 %, here on a checkered ball in front of clutter.
+  SceneSphere s = ball(0.05, Eigen::Vector3d(-0.15, 0.05, 1.4));
+  s.checkered = true;
+  s.colour2 = cv::Vec3d(240, 240, 240);
+  cv::Mat l, r;
+  cv::Rect box;
+  const StereoFrame f = render(scene({ s }, 2.5, true), l, r, box);
+  const BoxMatch m = matchBox(f, box);
+  ASSERT_TRUE(m.ok) << m.error;
+  EXPECT_LT(std::abs(m.centre.z() - 1.4) / 1.4, 0.03);
+  EXPECT_LT(std::abs(m.radius - 0.05) / 0.05, 0.03);
+}
+
+TEST(MatchBox, GreyImagesAndAWhiteBall)
+{
+  // mono8, a white ball on a light grey wall: only the shading and the outline are there to match.
+  cv::Mat l, r;
+  cv::Rect box;
+  StereoFrame f = render(scene({ ball(0.04, Eigen::Vector3d(0.05, 0.0, 1.3), cv::Vec3d(245, 245, 245)) }, 2.5), l,
+                         r, box);
+  cv::Mat gl, gr;
+  cv::cvtColor(l, gl, cv::COLOR_BGR2GRAY);
+  cv::cvtColor(r, gr, cv::COLOR_BGR2GRAY);
+  f.left = gl;
+  f.right = gr;
+  const BoxMatch m = matchBox(f, box);
+  ASSERT_TRUE(m.ok) << m.error;
+  EXPECT_LT(std::abs(m.centre.z() - 1.3) / 1.3, 0.01);
+}
+
+TEST(MatchBox, GainDifferenceBetweenCamerasDoesNotMatter)
+{
+  cv::Mat l, r;
+  cv::Rect box;
+  StereoFrame f = render(scene({ ball(0.035, Eigen::Vector3d(0.0, 0.0, 1.0)) }, 2.5, true), l, r, box);
+  cv::Mat darker;
+  r.convertTo(darker, -1, 0.75, 10.0);
+  f.right = darker;
+  const BoxMatch m = matchBox(f, box);
+  ASSERT_TRUE(m.ok) << m.error;
+  EXPECT_NEAR(m.disparity, f.geometry.disparity(1.0), 0.3);
+}
+
+TEST(MatchBox, TwoLookalikesOnTheRowAreAnErrorNamingTheBox)
+{
+  // A second identical ball 5 cm to the left at the same depth: in the right image it sits where the first
+  // one would be if it were nearer, so the match cannot tell which is which.
+  cv::Mat l, r;
+  cv::Rect box;
+  const StereoFrame f = render(
+      scene({ ball(0.02, Eigen::Vector3d(0.0, 0.0, 1.0)), ball(0.02, Eigen::Vector3d(-0.05, 0.0, 1.0)) }, 2.5), l, r,
+      box);
+  const BoxMatch m = matchBox(f, box);
+  EXPECT_FALSE(m.ok);
+  EXPECT_NE(m.error.find("ambiguous"), std::string::npos) << m.error;
+  EXPECT_NE(m.error.find(stereo_pf::boxText(box)), std::string::npos) << m.error;
+  // Seen alone, the same ball matches.
+  cv::Mat l1, r1;
+  const StereoFrame alone = render(scene({ ball(0.02, Eigen::Vector3d(0.0, 0.0, 1.0)) }, 2.5), l1, r1, box);
+  EXPECT_TRUE(matchBox(alone, box).ok);
+}
+
+TEST(MatchBox, UnusableBoxesAreClearErrors)
+{
+  cv::Mat l, r;
+  cv::Rect box;
+  const StereoFrame f = render(scene({ ball(0.035, Eigen::Vector3d(0.0, 0.0, 1.0)) }, 2.5), l, r, box);
+  const cv::Rect outside(600, 400, 80, 120);
+  BoxMatch m = matchBox(f, outside);
+  EXPECT_FALSE(m.ok);
+  EXPECT_NE(m.error.find("600,400,80,120"), std::string::npos) << m.error;
+  EXPECT_NE(m.error.find("not inside"), std::string::npos) << m.error;
+  m = matchBox(f, cv::Rect(10, 10, 2, 2));
+  EXPECT_FALSE(m.ok);
+  EXPECT_NE(m.error.find("too small"), std::string::npos) << m.error;
+  // A box on the flat wall: nothing to correlate.
+  SceneDescription flat = scene({ ball(0.035, Eigen::Vector3d(0.0, 0.0, 1.0)) }, 2.5);
+  flat.noise_sigma = 0.0;
+  cv::Mat fl, fr;
+  const StereoFrame ff = render(flat, fl, fr, box);
+  m = matchBox(ff, cv::Rect(20, 20, 30, 30));
+  EXPECT_FALSE(m.ok);
+  EXPECT_NE(m.error.find("no contrast"), std::string::npos) << m.error;
+}
+
+TEST(MatchBox, ABoxWithNoCounterpartIsNoMatch)
+{
+  // The right image replaced by a different scene: nothing there correlates with the box.
+  cv::Mat l, r, l2, r2;
+  cv::Rect box, other;
+  StereoFrame f = render(scene({ ball(0.035, Eigen::Vector3d(0.0, 0.0, 1.0)) }, 2.5, true), l, r, box);
+  SceneDescription d = scene({ ball(0.035, Eigen::Vector3d(0.3, 0.2, 1.0), cv::Vec3d(200, 40, 40)) }, 2.5, true);
+  d.background.seed = 9;
+  const StereoFrame g = render(d, l2, r2, other);
+  f.right = g.right;
+  const BoxMatch m = matchBox(f, box);
+  EXPECT_FALSE(m.ok);
+  EXPECT_FALSE(m.error.empty());
+}
+
+int main(int argc, char** argv)
+{
+  testing::InitGoogleTest(&argc, argv);
+  return RUN_ALL_TESTS();
+}
