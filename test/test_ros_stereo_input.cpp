@@ -404,6 +404,93 @@ TEST(TrackerOutputs, MarkersDeleteTheEstimateWhenInvalid)
   EXPECT_EQ(lines, 1);
 }
 
+// image_geometry asserts that both cameras share their frame and P's fx, fy and cy; with asserts compiled in
+// (Debian) a camera_info pair that differs there used to abort the whole nodelet manager.
+TEST(StereoInput, CameraInfoThatImageGeometryAssertsOnIsHandled)
+{
+  StereoInput input;
+  for (const int index : { 0, 5, 6 })  // fx, fy, cy of P
+  {
+    auto right = info(true);
+    right->P[index] *= 2.0;
+    const Result res = run(input, image(), image(), info(false), right);
+    EXPECT_FALSE(res.ok);
+    EXPECT_EQ(res.reason, DropReason::BadCameraInfo);
+    EXPECT_NE(res.why.find("not a rectified stereo pair"), std::string::npos) << res.why;
+  }
+  // Separate frames per camera, as some drivers publish: results are in the left frame, so that is fine.
+  auto right_frame = info(true);
+  right_frame->header.frame_id = "right_cam";
+  const Result other_frame = run(input, image(), image(), info(false), right_frame);
+  EXPECT_TRUE(other_frame.ok) << other_frame.why;
+  // A calibration refused after image_geometry took it in, then sent again, is refused for the same reason.
+  auto no_baseline = info(true);
+  no_baseline->P[3] = 0.0;
+  const Result first = run(input, image(), image(), info(false), no_baseline);
+  const Result again = run(input, image(), image(), info(false), no_baseline);
+  EXPECT_EQ(first.reason, DropReason::BadCameraInfo);
+  EXPECT_EQ(again.why, first.why);
+  EXPECT_TRUE(run(input, image(), image(), info(false), info(true)).ok);
+}
+
+TEST(TrackerOutputs, MarkersCarryTheParticlesColouredByWeight)
+{
+  std_msgs::Header h;
+  h.frame_id = "cam";
+  FrameResult r;
+  r.estimate.valid = true;
+  r.estimate.position = Eigen::Vector3d(0, 0, 1);
+  r.estimate.covariance = Eigen::Matrix3d::Identity() * 1e-4;
+  const std::vector<Eigen::Vector3f> points = { { 0, 0, 1 }, { 0.1f, 0, 1 }, { 0, 0.1f, 1 } };
+  const std::vector<float> weights = { 0.02f, 0.9f, 0.08f };
+  const visualization_msgs::MarkerArray none = toMarkers(h, r, EstimateTrail(), MarkerOptions());
+  for (const auto& m : none.markers)
+    EXPECT_NE(m.ns, "particles");
+  const visualization_msgs::MarkerArray m = toMarkers(h, r, EstimateTrail(), MarkerOptions(), &points, &weights);
+  const visualization_msgs::Marker* cloud = nullptr;
+  for (const auto& marker : m.markers)
+    if (marker.ns == "particles")
+      cloud = &marker;
+  ASSERT_NE(cloud, nullptr);
+  EXPECT_EQ(cloud->type, visualization_msgs::Marker::POINTS);
+  ASSERT_EQ(cloud->points.size(), 3u);
+  ASSERT_EQ(cloud->colors.size(), 3u);
+  EXPECT_FLOAT_EQ(cloud->points[1].x, 0.1f);
+  EXPECT_FLOAT_EQ(cloud->colors[1].r, 1.0f);  // the heaviest: red
+  EXPECT_FLOAT_EQ(cloud->colors[1].b, 0.0f);
+  EXPECT_GT(cloud->colors[0].b, 0.9f);        // light: blue
+  EXPECT_LT(cloud->colors[0].r, 0.1f);
+  EXPECT_EQ(cloud->header.frame_id, "cam");
+}
+
+TEST(TrackerOutputs, TrailStartsAfreshOnTimeJumpsGapsAndLoss)
+{
+  EstimateTrail trail(90, 1.0);
+  double t = 100.0;
+  for (int i = 0; i < 5; ++i, t += 0.033)
+    trail.update(t, Eigen::Vector3d(i, 0, 1), true);
+  EXPECT_EQ(trail.points().size(), 5u);
+  trail.update(50.0, Eigen::Vector3d(0, 0, 1), true);  // time went back: a bag played again
+  EXPECT_EQ(trail.points().size(), 1u);
+  trail.update(50.033, Eigen::Vector3d(0, 0, 1), true);
+  trail.update(50.033, Eigen::Vector3d(0, 0, 1), true);  // the same stamp again
+  EXPECT_EQ(trail.points().size(), 1u);
+  trail.update(50.066, Eigen::Vector3d(0, 0, 1), true);
+  EXPECT_EQ(trail.points().size(), 2u);
+  trail.update(52.0, Eigen::Vector3d(0, 0, 1), true);  // no estimate for more than max_gap
+  EXPECT_EQ(trail.points().size(), 1u);
+  trail.update(52.033, Eigen::Vector3d(0, 0, 1), true);
+  trail.update(52.066, Eigen::Vector3d(3, 0, 1), false);  // not tracked: the search is not drawn
+  EXPECT_TRUE(trail.points().empty());
+  trail.update(52.1, Eigen::Vector3d(3, 0, 1), true);
+  EXPECT_EQ(trail.points().size(), 1u);
+  EstimateTrail short_trail(3);
+  for (int i = 0; i < 5; ++i)
+    short_trail.update(i * 0.033, Eigen::Vector3d(i, 0, 1), true);
+  ASSERT_EQ(short_trail.points().size(), 3u);
+  EXPECT_EQ(short_trail.points().front().x(), 2.0);
+}
+
 int main(int argc, char** argv)
 {
   testing::InitGoogleTest(&argc, argv);

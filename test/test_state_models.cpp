@@ -259,6 +259,56 @@ TEST(Engine, SameSeedSameOutputDifferentSeedDifferent)
   EXPECT_TRUE(differs);
 }
 
+// Visualisation shows weightedSets(): the set the estimate was computed from, before resampling made every
+// weight 1/N and most particles copies of a few.
+TEST(Engine, WeightedSetsKeepTheWeightsResamplingErases)
+{
+  SceneRenderer renderer(loadScene(std::string(SCENES_DIR) + "/pendulum_uncluttered.yaml"));
+  for (const double threshold : { 1.0, 0.0 })  // resample every frame / never
+  {
+    auto colour = std::make_shared<ColourHSI>();
+    colour->initialize("colour", Parameters());
+    EngineConfig config;
+    config.resample_threshold = threshold;
+    FilterEngine engine(make<Position3D>(), { colour }, config);
+    EXPECT_TRUE(engine.weightedSets().empty());
+    StereoFrame f;
+    f.geometry = renderer.geometry();
+    cv::Mat left, right;
+    for (int k = 0; k < 6; ++k)
+    {
+      renderer.render(k, left, right);
+      f.left = left;
+      f.right = right;
+      f.stamp = renderer.stamp(k);
+      std::string error;
+      if (k == 0)
+      {
+        ASSERT_TRUE(engine.learnTarget(f, renderer.targetRoi(0), error)) << error;
+      }
+      const FrameResult r = engine.step(f);
+      ASSERT_EQ(engine.weightedSets().size(), 1u);
+      const ParticleSet& weighed = engine.weightedSets()[0];
+      const ParticleSet& after = engine.sets()[0];
+      ASSERT_EQ(weighed.size(), config.particles);
+      EXPECT_NEAR(weighed.weights.sum(), 1.0, 1e-9);
+      EXPECT_GT(weighed.weights.maxCoeff(), 2.0 * weighed.weights.minCoeff()) << "frame " << k;
+      // The mean estimate is the weighted mean of exactly this set.
+      EXPECT_LT((weightedMean(weighed.states, weighed.weights) - r.estimate.position).norm(), 1e-9) << "frame " << k;
+      EXPECT_EQ(r.resampled, threshold > 0.0);
+      if (r.resampled)
+      {
+        EXPECT_NEAR(after.weights.maxCoeff() - after.weights.minCoeff(), 0.0, 1e-12);
+      }
+      else
+      {
+        EXPECT_EQ(weighed.states, after.states);
+        EXPECT_EQ(weighed.weights, after.weights);
+      }
+    }
+  }
+}
+
 TEST(Engine, DeclaresLostWhileOccludedAndReacquires)
 {
   SceneRenderer renderer(loadScene(std::string(SCENES_DIR) + "/occlusion.yaml"));

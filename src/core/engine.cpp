@@ -688,6 +688,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
   result.support = support;
   updateTrackState(support, result);
 
+  weighted_sets_ = sets_;  // a copy into the same buffers every frame: the weights resampling erases
   for (ParticleSet& p : sets_)
   {
     if (p.effectiveSampleSize() < config_.resample_threshold * p.size())

@@ -173,19 +173,24 @@ bool StereoCalibration::update(const sensor_msgs::CameraInfo& left, const sensor
     error = "camera_info has a zero focal length in P (uncalibrated camera?)";
     return false;
   }
-  // fromCameraInfo returns whether the model changed, not whether it is valid: a pair equal to the one it
-  // already holds (the good calibration again after a bad one) returns false. Validity is checked above and
-  // by StereoGeometry::validate() below.
-  // It also asserts (aborting the whole nodelet manager) that both frame_ids are equal; only the intrinsics
-  // matter here, so the right one is given the left frame_id (cameraInfoNotes() says when they differ).
-  if (left.header.frame_id == right.header.frame_id)
-    model_.fromCameraInfo(left, right);
-  else
+  // Sizes, finiteness and focal length are checked above; the pair's consistency here, since bag reading calls
+  // this directly. image_geometry asserts (in Debian's build a failed assert aborts the whole nodelet manager)
+  // that both cameras share their frame_id and P's fx, fy and cy exactly: the right camera's frame (unused:
+  // results are in the left frame) is taken to be the left's, and the differences the pair check tolerates
+  // (rounding in a calibration file) are removed. fromCameraInfo returns whether the model changed, not whether
+  // it is valid: validity is checked here and by StereoGeometry::validate() below.
+  const std::string pair = checkCameraInfoPair(left, right);
+  if (!pair.empty())
   {
-    sensor_msgs::CameraInfo same_frame = right;
-    same_frame.header.frame_id = left.header.frame_id;
-    model_.fromCameraInfo(left, same_frame);
+    error = pair;
+    return false;
   }
+  sensor_msgs::CameraInfo right_in_left_frame = right;
+  right_in_left_frame.header.frame_id = left.header.frame_id;
+  right_in_left_frame.P[0] = left.P[0];
+  right_in_left_frame.P[5] = left.P[5];
+  right_in_left_frame.P[6] = left.P[6];
+  model_.fromCameraInfo(left, right_in_left_frame);
   const auto& l = model_.left();
   geometry_ = StereoGeometry(l.fx(), l.fy(), l.cx(), l.cy(), model_.baseline(), static_cast<int>(left.width),
                              static_cast<int>(left.height));

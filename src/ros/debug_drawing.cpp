@@ -9,6 +9,8 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "stereo_pf/ros/tracker_outputs.h"
+
 namespace stereo_pf
 {
 namespace
@@ -21,14 +23,11 @@ cv::Point fixedPoint(double u, double v)
   return cv::Point(static_cast<int>(std::lround(u * kScale)), static_cast<int>(std::lround(v * kScale)));
 }
 
-// Blue (low) -> green -> red (high) for t in [0, 1].
+// weightColour() as an OpenCV BGR colour.
 cv::Scalar heat(double t)
 {
-  t = std::clamp(t, 0.0, 1.0);
-  const double r = std::clamp(2.0 * t - 0.5, 0.0, 1.0) * 255.0;
-  const double g = (1.0 - std::fabs(2.0 * t - 1.0)) * 255.0;
-  const double b = std::clamp(1.5 - 2.0 * t, 0.0, 1.0) * 255.0;
-  return cv::Scalar(b, g, r);
+  const std::array<float, 3> rgb = weightColour(t);
+  return cv::Scalar(rgb[2] * 255.0, rgb[1] * 255.0, rgb[0] * 255.0);
 }
 
 cv::Scalar stateColour(TrackState s)
@@ -60,7 +59,8 @@ void DebugDrawing::draw(const StereoFrame& frame, View view, const FilterEngine&
   merged_w_.clear();
   merged_r_.clear();
   const StateModel& model = engine.stateModel();
-  const std::vector<ParticleSet>& sets = engine.sets();
+  // The set as weighed, before the step's resampling (which leaves every weight 1/N on copies of a few).
+  const std::vector<ParticleSet>& sets = engine.weightedSets();
   std::map<std::pair<float, float>, size_t> index;
   for (int s = 0; s < static_cast<int>(sets.size()); ++s)
   {
@@ -87,6 +87,11 @@ void DebugDrawing::draw(const StereoFrame& frame, View view, const FilterEngine&
     }
   }
 
+  // Marks, lines and text grow with the image (sizes below are for 640 px wide), so a debug image of any
+  // resolution reads the same when shown at its own size.
+  const double scale = std::max(out.cols / 640.0, 0.5);
+  const int line = std::max(static_cast<int>(std::lround(2.0 * scale)), 1);
+
   // Light particles first so the heavy ones stay visible on top.
   order_.resize(merged_w_.size());
   std::iota(order_.begin(), order_.end(), 0);
@@ -95,8 +100,8 @@ void DebugDrawing::draw(const StereoFrame& frame, View view, const FilterEngine&
   double radius_sum = 0.0, weight_sum = 0.0;
   for (int i : order_)
   {
-    cv::circle(out, fixedPoint(merged_u_[i], merged_v_[i]), static_cast<int>(1.5 * kScale), heat(merged_w_[i] / max_w),
-               cv::FILLED, cv::LINE_AA, kShift);
+    cv::circle(out, fixedPoint(merged_u_[i], merged_v_[i]), static_cast<int>(1.5 * scale * kScale),
+               heat(merged_w_[i] / max_w), cv::FILLED, cv::LINE_AA, kShift);
     if (std::isfinite(merged_r_[i]))
     {
       radius_sum += merged_w_[i] * merged_r_[i];
@@ -111,16 +116,22 @@ void DebugDrawing::draw(const StereoFrame& frame, View view, const FilterEngine&
     const double r = weight_sum > 0.0 ? radius_sum / weight_sum : 10.0;
     if (std::isfinite(p.u) && std::isfinite(p.v) && std::isfinite(r))
     {
-      cv::circle(out, fixedPoint(p.u, p.v), static_cast<int>(std::lround(r * kScale)), colour, 2, cv::LINE_AA, kShift);
+      cv::circle(out, fixedPoint(p.u, p.v), static_cast<int>(std::lround(r * kScale)), colour, line, cv::LINE_AA, kShift);
       cv::drawMarker(out, cv::Point(static_cast<int>(std::lround(p.u)), static_cast<int>(std::lround(p.v))), colour,
-                     cv::MARKER_CROSS, 10, 1, cv::LINE_AA);
+                     cv::MARKER_CROSS, static_cast<int>(std::lround(12 * scale)), std::max(line / 2, 1), cv::LINE_AA);
     }
   }
   char text[160];
   std::snprintf(text, sizeof(text), "%s %s  ESS %.0f  evidence %.2f", view == View::Left ? "L" : "R",
                 toString(result.state).c_str(), result.ess, result.evidence);
-  cv::putText(out, text, cv::Point(8, 20), cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 0), 3, cv::LINE_AA);
-  cv::putText(out, text, cv::Point(8, 20), cv::FONT_HERSHEY_SIMPLEX, 0.5, colour, 1, cv::LINE_AA);
+  // About 15 px capitals at 640 px: legible when the image is shown at its own size.
+  const double font = 0.7 * scale;
+  const int thickness = std::max(static_cast<int>(std::lround(1.5 * scale)), 1);
+  int baseline = 0;
+  const cv::Size size = cv::getTextSize(text, cv::FONT_HERSHEY_SIMPLEX, font, thickness, &baseline);
+  const cv::Point origin(static_cast<int>(std::lround(10 * scale)), static_cast<int>(std::lround(10 * scale)) + size.height);
+  cv::putText(out, text, origin, cv::FONT_HERSHEY_SIMPLEX, font, cv::Scalar(0, 0, 0), thickness + 3, cv::LINE_AA);
+  cv::putText(out, text, origin, cv::FONT_HERSHEY_SIMPLEX, font, colour, thickness, cv::LINE_AA);
 }
 
 }  // namespace stereo_pf

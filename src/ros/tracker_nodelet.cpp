@@ -569,7 +569,6 @@ void TrackerNodelet::publish(const std_msgs::Header& header, const StereoFrame& 
     pose_pub_.publish(boost::make_shared<geometry_msgs::PoseWithCovarianceStamped>(toPose(header, e)));
     if (tf_broadcaster_)
       tf_broadcaster_->sendTransform(toTransform(header, object_frame_, e));
-    trail_.add(e.position);
     last_tracked_ = e;
   }
   else if (publish_when_lost_ && last_tracked_)
@@ -581,6 +580,8 @@ void TrackerNodelet::publish(const std_msgs::Header& header, const StereoFrame& 
     target_pub_.publish(boost::make_shared<geometry_msgs::PointStamped>(toPointStamped(header, held)));
     pose_pub_.publish(boost::make_shared<geometry_msgs::PoseWithCovarianceStamped>(toPose(header, held)));
   }
+
+  trail_.update(header.stamp.toSec(), e.position, tracking);  // restarts while not tracking
 
   const EngineConfig& config = tracker_->engine().config();
   const std::string message = describeTrack(result, config, tracker_->engine().viewingVolume());
@@ -616,13 +617,19 @@ void TrackerNodelet::publish(const std_msgs::Header& header, const StereoFrame& 
   }
   status_pub_.publish(status);
 
-  if (markers_pub_.getNumSubscribers() > 0)
-    markers_pub_.publish(boost::make_shared<visualization_msgs::MarkerArray>(toMarkers(header, result, trail_, marker_options_)));
-
-  if (particles_pub_.getNumSubscribers() > 0)
+  const bool want_markers = markers_pub_.getNumSubscribers() > 0, want_cloud = particles_pub_.getNumSubscribers() > 0;
+  if (want_markers || want_cloud)
   {
-    tracker_->engine().stateModel().cloud(frame.geometry, tracker_->engine().sets(), cloud_raw_, cloud_raw_weights_);
+    // The set as weighed, before the step's resampling left copies of a few particles, all weighing 1/N.
+    const FilterEngine& engine = tracker_->engine();
+    engine.stateModel().cloud(frame.geometry, engine.weightedSets(), cloud_raw_, cloud_raw_weights_);
     mergeDuplicates(cloud_raw_, cloud_raw_weights_, cloud_points_, cloud_weights_);
+  }
+  if (want_markers)  // the particles too: rviz then draws them in the same update as the estimate
+    markers_pub_.publish(boost::make_shared<visualization_msgs::MarkerArray>(
+        toMarkers(header, result, trail_, marker_options_, &cloud_points_, &cloud_weights_)));
+  if (want_cloud)
+  {
     auto cloud = boost::make_shared<sensor_msgs::PointCloud2>();
     toCloud(header, cloud_points_, cloud_weights_, *cloud);
     particles_pub_.publish(cloud);

@@ -104,6 +104,16 @@ void EstimateTrail::add(const Eigen::Vector3d& p)
     points_.pop_front();
 }
 
+void EstimateTrail::update(double stamp, const Eigen::Vector3d& p, bool tracking)
+{
+  const bool continues = !points_.empty() && stamp > last_stamp_ && stamp - last_stamp_ <= max_gap_;
+  last_stamp_ = stamp;
+  if (!continues || !tracking)
+    points_.clear();
+  if (tracking)
+    add(p);
+}
+
 void covarianceEllipsoid(const Eigen::Matrix3d& covariance, double sigma_scale, Eigen::Vector3d& scale,
                          Eigen::Vector4d& quaternion_xyzw)
 {
@@ -152,8 +162,16 @@ visualization_msgs::Marker base(const std_msgs::Header& header, const std::strin
 }
 }  // namespace
 
+std::array<float, 3> weightColour(double t)
+{
+  t = std::clamp(t, 0.0, 1.0);
+  return { static_cast<float>(std::clamp(2.0 * t - 0.5, 0.0, 1.0)), static_cast<float>(1.0 - std::fabs(2.0 * t - 1.0)),
+           static_cast<float>(std::clamp(1.5 - 2.0 * t, 0.0, 1.0)) };
+}
+
 visualization_msgs::MarkerArray toMarkers(const std_msgs::Header& header, const FrameResult& result,
-                                          const EstimateTrail& trail, const MarkerOptions& options)
+                                          const EstimateTrail& trail, const MarkerOptions& options,
+                                          const std::vector<Eigen::Vector3f>* points, const std::vector<float>* weights)
 {
   visualization_msgs::MarkerArray array;
   const StateEstimate& e = result.estimate;
@@ -220,6 +238,26 @@ visualization_msgs::MarkerArray toMarkers(const std_msgs::Header& header, const 
   if (line.points.size() < 2)
     line.action = visualization_msgs::Marker::DELETE;  // a line strip needs two points
   array.markers.push_back(line);
+
+  if (points && weights && points->size() == weights->size())
+  {
+    visualization_msgs::Marker cloud = base(header, "particles", visualization_msgs::Marker::POINTS);
+    cloud.scale.x = cloud.scale.y = 0.004;
+    const float heaviest = weights->empty() ? 1.0f : std::max(*std::max_element(weights->begin(), weights->end()), 1e-12f);
+    cloud.points.resize(points->size());
+    cloud.colors.resize(points->size());
+    for (size_t i = 0; i < points->size(); ++i)
+    {
+      cloud.points[i].x = (*points)[i].x();
+      cloud.points[i].y = (*points)[i].y();
+      cloud.points[i].z = (*points)[i].z();
+      const std::array<float, 3> c = weightColour((*weights)[i] / heaviest);
+      cloud.colors[i] = colour(c[0], c[1], c[2], 1.0f);
+    }
+    if (cloud.points.empty())
+      cloud.action = visualization_msgs::Marker::DELETE;
+    array.markers.push_back(cloud);
+  }
   return array;
 }
 

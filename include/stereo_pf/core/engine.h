@@ -143,6 +143,9 @@ public:
 
   /// The particle sets after the last step (normalised weights; after resampling when it happened).
   const std::vector<ParticleSet>& sets() const { return sets_; }
+  /// The particle sets of the last step as weighed, just before its final resampling (equal to sets() when
+  /// it did not resample): after resampling every weight is 1/N, so this is what visualisation shows.
+  const std::vector<ParticleSet>& weightedSets() const { return weighted_sets_; }
   /// The feature cache of the last frame (debug drawing, tests).
   FeatureCache& cache() { return cache_; }
   /// The state model.
@@ -197,6 +200,7 @@ private:
   Rng rng_;
   FeatureCache cache_;
   std::vector<ParticleSet> sets_;
+  std::vector<ParticleSet> weighted_sets_;  ///< sets_ before the last step's final resampling
   std::vector<std::vector<ImageHypotheses>> hypotheses_;
   bool initialised_ = false;
   double last_stamp_ = 0.0;

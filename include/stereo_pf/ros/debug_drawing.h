@@ -13,9 +13,10 @@ namespace stereo_pf
 class DebugDrawing
 {
 public:
-  /// Draw `view` of `frame` with the engine's current particles and `result` into `out` (CV_8UC3, a copy:
-  /// the frame's image is never written). Particles are projected with the state model; copies made by
-  /// resampling are merged so the colour shows the weight before resampling (blue low, red high).
+  /// Draw `view` of `frame` with the engine's particles as weighed in the last step (before its resampling)
+  /// and `result` into `out` (CV_8UC3, a copy: the frame's image is never written). Particles are projected
+  /// with the state model and coloured by weight (blue low, red high); particles at the same pixel are merged,
+  /// their weights summed. Marks and text are sized for the image's width (legible at its own size).
   void draw(const StereoFrame& frame, View view, const FilterEngine& engine, const FrameResult& result, cv::Mat& out);
 
 private:

@@ -3,6 +3,7 @@
 // recent trajectory). Message construction only; publishing stays in the nodelet.
 #pragma once
 
+#include <array>
 #include <deque>
 #include <string>
 #include <vector>
@@ -52,21 +53,40 @@ struct MarkerOptions
 class EstimateTrail
 {
 public:
-  explicit EstimateTrail(int length = 90) : length_(length) {}
+  /// Keep the last `length` estimates; a gap of more than `max_gap` seconds starts a new line.
+  explicit EstimateTrail(int length = 90, double max_gap = 1.0) : length_(length), max_gap_(max_gap) {}
+  /// Append a point (the oldest goes when the trail is full).
   void add(const Eigen::Vector3d& p);
+  /// Append the estimate of the frame stamped `stamp` (seconds) while the target is tracked. The line starts
+  /// afresh when the time goes backwards or stands still (a bag or a scene played again), after more than
+  /// max_gap seconds without an estimate, and whenever the target is not tracked (the estimate then follows
+  /// the search, not the object, and a re-acquired object may be far from where it was lost).
+  void update(double stamp, const Eigen::Vector3d& p, bool tracking);
+  /// Forget every point.
   void clear() { points_.clear(); }
+  /// The points, oldest first.
   const std::deque<Eigen::Vector3d>& points() const { return points_; }
 
 private:
   int length_;
+  double max_gap_;
+  double last_stamp_ = 0.0;
   std::deque<Eigen::Vector3d> points_;
 };
 
 /// Markers in namespaces "estimate" (sphere coloured by track state: green tracking, orange searching,
 /// red lost), "covariance" (ellipsoid), "trajectory" (line strip) and "state" (text). When the estimate
-/// is invalid the estimate markers are deleted.
+/// is invalid the estimate markers are deleted. With `points` and `weights` (mergeDuplicates' output) also
+/// "particles": one point each, coloured by weight relative to the heaviest (weightColour); in one message
+/// with the estimate, rviz draws them for the same frame (a separate cloud display lags a frame or two behind).
 visualization_msgs::MarkerArray toMarkers(const std_msgs::Header& header, const FrameResult& result,
-                                          const EstimateTrail& trajectory, const MarkerOptions& options);
+                                          const EstimateTrail& trajectory, const MarkerOptions& options,
+                                          const std::vector<Eigen::Vector3f>* points = nullptr,
+                                          const std::vector<float>* weights = nullptr);
+
+/// The colour of a particle of relative weight t in [0, 1] (weight / heaviest weight): blue (light) -> green
+/// -> red (heavy), as red, green, blue in [0, 1]. The debug images and the markers use it.
+std::array<float, 3> weightColour(double t);
 
 /// The track state of one frame in words (~status message, diagnostics summary), saying what to do when
 /// something is wrong: a target the background explains as well (learn it again), an estimate that left what
