@@ -17,23 +17,11 @@
 #include <vector>
 #include <sys/stat.h>
 
+#include "run_command.h"
+
 namespace
 {
-std::string run(const std::string& command, int& status)
-{
-  std::string out;
-  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
-  if (!pipe)
-  {
-    status = -1;
-    return out;
-  }
-  char buffer[4096];
-  while (fgets(buffer, sizeof(buffer), pipe))
-    out += buffer;
-  status = pclose(pipe);
-  return out;
-}
+using stereo_pf_test::run;
 
 // "summary: frames=150 converged_at=3 rms_cm=2.40 ..." -> key/value map.
 std::map<std::string, std::string> summary(const std::string& output)

@@ -19,23 +19,11 @@
 
 #include "stereo_pf/ros/conversions.h"
 
+#include "run_command.h"
+
 namespace
 {
-std::string run(const std::string& command, int& status)
-{
-  std::string out;
-  FILE* pipe = popen((command + " 2>&1").c_str(), "r");
-  if (!pipe)
-  {
-    status = -1;
-    return out;
-  }
-  char buffer[4096];
-  while (fgets(buffer, sizeof(buffer), pipe))
-    out += buffer;
-  status = pclose(pipe);
-  return out;
-}
+using stereo_pf_test::run;
 
 // A 160x120 scene of a ball swinging in front of a plain wall, 12 frames, with the given sensor block.
 std::string makeBag(const std::string& name, const std::string& sensor)

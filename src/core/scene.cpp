@@ -31,15 +31,6 @@ std::string vecText(const Eigen::Vector3d& v)
   return s.str();
 }
 
-// SplitMix64 finaliser: turns (seed, frame, view) into well-spread, platform-independent RNG states.
-uint64_t mix64(uint64_t x)
-{
-  x += 0x9E3779B97F4A7C15ULL;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
-  return x ^ (x >> 31);
-}
-
 // Triangle wave that keeps x inside [lo, hi] as if reflected at both ends (bouncing, closed form so
 // frame k never depends on earlier frames).
 double reflect(double x, double lo, double hi)
@@ -1012,7 +1003,7 @@ void SceneRenderer::renderBackdrop()
   const int th = static_cast<int>(std::ceil((y_max - y_min) / texel)) + 1;
   const double metres = 1.0 / texel;  // texels per metre
 
-  cv::RNG rng(mix64(bg.seed));
+  cv::RNG rng(scene_detail::mix64(bg.seed));
   const cv::Vec3d mean = bg.colour;
   auto randomColour = [&rng, &mean]() {
     // Half fully random colours, half variations of the mean tone: busy but not a rainbow.

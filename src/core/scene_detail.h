@@ -3,6 +3,7 @@
 // (trajectory.cpp). scene.cpp dispatches to them; they know nothing of YAML.
 #pragma once
 
+#include <cstdint>
 #include <limits>
 #include <string>
 
@@ -15,6 +16,16 @@ namespace stereo_pf
 {
 namespace scene_detail
 {
+/// SplitMix64 finaliser: turns seeds (scene, frame, view, stream) into well-spread, platform-independent RNG
+/// states; the renderer and the sensor model both derive theirs with it.
+inline uint64_t mix64(uint64_t x)
+{
+  x += 0x9E3779B97F4A7C15ULL;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
+  return x ^ (x >> 31);
+}
+
 /// Where a ray first meets a box or a cylinder.
 struct SolidHit
 {

@@ -12,20 +12,15 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "scene_detail.h"
+
 namespace stereo_pf
 {
 namespace
 {
-// SplitMix64 finaliser, as scene.cpp seeds its noise: the per-pixel noise stream must stay the one the
-// renderer has always used, so shipped scenes keep their pixels.
-uint64_t mix64(uint64_t x)
-{
-  x += 0x9E3779B97F4A7C15ULL;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ULL;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBULL;
-  return x ^ (x >> 31);
-}
+using scene_detail::mix64;
 
+// The per-pixel noise stream must stay the one the renderer has always used, so shipped scenes keep their pixels.
 // RNG state of the per-pixel noise of frame k in `view` (unchanged from the renderer's addNoise).
 uint64_t pixelNoiseState(uint64_t seed, int k, View view)
 {
