@@ -4,9 +4,10 @@
 Starts tracker.launch (manager + TrackerNodelet, config/tracker.yaml) on a master of its own, teaches it the
 target on a make_scene pendulum bag and keeps it tracking with good frames at 30 Hz. For each case of
 test/stereo_feed.py's bad_variants(): 30 good frames, the bad stereo set, 30 good frames. A row says what was
-fed, the outcome (which diagnostics counter rose: dropped and why, an unpaired set, or accepted and tracked;
-whether tracking went on, from the error of the last good frames against the ground truth) and the message the
-tracker logged (its warnings and errors while the case ran; else the diagnostics' "last drop").
+fed, the outcome (which diagnostics counter rose: dropped and why, an unpaired set, or accepted and tracked,
+with the state and support ~status gave that frame; whether tracking went on, from the error of the last good
+frames against the ground truth) and the message the tracker logged (its warnings and errors while the case
+ran; else the diagnostics' "last drop").
 
 usage: source build/devel/setup.bash
        test/bad_input_table.py [--bag BAG] [--write docs/ros_runtime.md]
@@ -99,6 +100,12 @@ def main():
                     outcome = outcome.replace("unpaired stereo sets", "never paired: counted as an unpaired set")
             elif offsets != "repeat" and feed.answered(stamp) or tracked_extra > 0:
                 outcome = "accepted and tracked"
+                # What the tracker said about that frame: one frame without evidence is not yet lost
+                # (engine/lost_frames), and the support shows it.
+                shift = offsets.get("left", 0.0) if isinstance(offsets, dict) else 0.0
+                status = feed.status_of(stamp + rospy.Duration.from_sec(shift))
+                if status is not None:
+                    outcome += " (`~status`: %s, support: %s)" % status
             else:
                 outcome = "no effect seen (neither dropped nor tracked)"
             if alive:

@@ -9,7 +9,7 @@ default config: Position3D, 1000 particles, colour), then samples for --duration
     scene_publisher published the images), so it includes image transport to the manager, the
     synchroniser, tracking and the transport of ~target back here (an upper bound of the tracker's own);
   - the tracker's own latency, from image arrival in its callback to ~target published (its diagnostics
-    key "latency to ~target median (ms)", over the last 300 frames);
+    key "latency from arrival median (ms)", over the last 300 frames);
   - CPU of the manager process from /proc/<pid>/stat (utime + stime), in % of one core;
   - resident memory (VmRSS) of the manager every 10 s; growth is judged from minute 1 to the end.
 
@@ -126,8 +126,8 @@ def main():
             time.sleep(min(10.0, args.duration - (time.time() - t0)))
             rss.append((time.time() - t0, rss_mb(manager_pid)))
             with lock:
-                if "latency to ~target median (ms)" in diag:
-                    internal.append(float(diag["latency to ~target median (ms)"]))
+                if "latency from arrival median (ms)" in diag:
+                    internal.append(float(diag["latency from arrival median (ms)"]))
             print("  t=%5.0f s  RSS %.1f MB  frames with ~target %d" % (rss[-1][0], rss[-1][1], len(latencies)),
                   flush=True)
         t1, c1 = time.time(), cpu_seconds(manager_pid)
@@ -144,7 +144,7 @@ def main():
               "p95 %.2f, max %.2f" % (percentile(lat, 0.5), percentile(lat, 0.95), percentile(lat, 1.0)))
         print("tracker latency (image arrival in the nodelet -> ~target published), median of the last 300 "
               "frames, ms: %s (diagnostics samples: median %.2f, max %.2f)" % (
-                  d.get("latency to ~target median (ms)", "?"), percentile(internal, 0.5), percentile(internal, 1.0)))
+                  d.get("latency from arrival median (ms)", "?"), percentile(internal, 0.5), percentile(internal, 1.0)))
         print("tracker processing per frame (diagnostics), ms: median %s, max %s" % (
             d.get("processing time median (ms)", "?"), d.get("processing time max (ms)", "?")))
         print("manager CPU: %.1f %% of one core" % cpu)

@@ -174,7 +174,7 @@ def main():
                   message, diag.get("dropped frames"), diag.get("dropped: bad image"),
                   diag.get("dropped: size mismatch"), diag.get("dropped: bad camera_info"),
                   diag.get("dropped: out of sync"), diag.get("unpaired stereo sets"),
-                  diag.get("processing time median (ms)"), diag.get("latency to ~target median (ms)"),
+                  diag.get("processing time median (ms)"), diag.get("latency from arrival median (ms)"),
                   diag.get("last drop")))
     except Exception as e:  # a failure to start is a failure, with the reason
         failures.append("%s: %s" % (type(e).__name__, e))

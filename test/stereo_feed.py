@@ -20,6 +20,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PointStamped
 from rosgraph_msgs.msg import Log
 from sensor_msgs.msg import CameraInfo, Image, RegionOfInterest
+from stereo_pf.msg import TrackStatus
 
 TRACKER = "/stereo_pf_tracker"
 MANAGER = "/stereo_pf_manager"
@@ -153,6 +154,7 @@ class Feed:
         self.estimates = {}         # stamp (ns) -> (x, y, z)
         self.latency_ms = {}        # stamp (ns) -> ~target arrival - publish, ms
         self.arrivals = []          # wall time of every ~target received
+        self.status = {}            # stamp (ns) -> (state_name, support) of the last ~status with that stamp
         self.diag = {}
         self.diag_level = None
         self.diag_message = ""
@@ -166,6 +168,7 @@ class Feed:
         self.roi_pub = rospy.Publisher("/feed/target_roi", RegionOfInterest, queue_size=1, latch=True)
         self.subs = [
             rospy.Subscriber(TRACKER + "/target", PointStamped, self._on_target, queue_size=200, tcp_nodelay=True),
+            rospy.Subscriber(TRACKER + "/status", TrackStatus, self._on_status, queue_size=200, tcp_nodelay=True),
             rospy.Subscriber("/diagnostics", DiagnosticArray, self._on_diag, queue_size=20),
             rospy.Subscriber("/rosout_agg", Log, self._on_log, queue_size=200),
         ]
@@ -180,6 +183,10 @@ class Feed:
             self.arrivals.append(now)
             if key in self.sent_at:
                 self.latency_ms[key] = (now - self.sent_at[key]) * 1e3
+
+    def _on_status(self, msg):
+        with self.lock:
+            self.status[msg.header.stamp.to_nsec()] = (msg.state_name, msg.support)
 
     def _on_diag(self, msg):
         for s in msg.status:
@@ -259,6 +266,11 @@ class Feed:
     def answered(self, stamp):
         with self.lock:
             return stamp.to_nsec() in self.estimates
+
+    def status_of(self, stamp):
+        """(state_name, support) of the last ~status stamped `stamp`, None when none came."""
+        with self.lock:
+            return self.status.get(stamp.to_nsec())
 
     def diagnostics(self):
         with self.lock:

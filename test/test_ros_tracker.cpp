@@ -138,12 +138,13 @@ public:
     return stamp;
   }
 
-  /// Publish a frame whose right image is stamped `skew` seconds after the other three messages.
-  void publishSkewed(BagFrame f, double skew)
+  /// Publish a frame whose right image (`left_info` false) or left camera_info (true) is stamped `skew` seconds
+  /// after the other three messages.
+  void publishSkewed(BagFrame f, double skew, bool left_info = false)
   {
     const ros::Time stamp(2000.0 + (count_++) / 30.0);
-    f.left.header.stamp = f.left_info.header.stamp = f.right_info.header.stamp = stamp;
-    f.right.header.stamp = stamp + ros::Duration(skew);
+    f.left.header.stamp = f.left_info.header.stamp = f.right.header.stamp = f.right_info.header.stamp = stamp;
+    (left_info ? f.left_info.header.stamp : f.right.header.stamp) = stamp + ros::Duration(skew);
     left_info_pub_.publish(f.left_info);
     right_info_pub_.publish(f.right_info);
     left_pub_.publish(f.left);
@@ -818,21 +819,28 @@ TEST(Tracker, OverloadIsCountedAndExplained)
 }
 
 // A right image stamped 1 ms off leaves two incomplete ExactTime sets (left at t, right at t + 1 ms): one
-// camera frame, one dropped frame (it was counted twice).
+// camera frame, one dropped frame (it was counted twice). So does a left camera_info stamped 1 ms off (the
+// images and the right camera_info at t, the left camera_info alone at t + 1 ms; it was counted twice too).
 TEST(Tracker, ASkewedFrameIsCountedOnce)
 {
   Harness& h = *harness;
-  const size_t k = settleAt(60);
-  const uint64_t unpaired = h.counter("unpaired stereo sets", h.published());
-  const uint64_t out_of_sync = h.counter("dropped: out of sync", h.published());
-  h.publishSkewed(h.frames()[k], 0.001);
-  // ExactTime gives up on the two incomplete sets once later sets push them out of its queue.
-  stereo_pf::TrackStatus status;
-  for (size_t j = k + 1; j < k + 11; ++j)
-    h.stepStatus(h.frames()[j], status);
-  const uint64_t complete = h.published() - 1;  // the skewed one never completed
-  EXPECT_EQ(h.counter("unpaired stereo sets", complete), unpaired + 2);
-  EXPECT_EQ(h.counter("dropped: out of sync", complete), out_of_sync + 1);
+  uint64_t skewed = 0;  // sets published that never completed
+  for (const bool left_info : { false, true })
+  {
+    SCOPED_TRACE(left_info ? "left camera_info skewed" : "right image skewed");
+    const size_t k = settleAt(60);
+    const uint64_t unpaired = h.counter("unpaired stereo sets", h.published() - skewed);
+    const uint64_t out_of_sync = h.counter("dropped: out of sync", h.published() - skewed);
+    h.publishSkewed(h.frames()[k], 0.001, left_info);
+    ++skewed;
+    // ExactTime gives up on the two incomplete sets once later sets push them out of its queue.
+    stereo_pf::TrackStatus status;
+    for (size_t j = k + 1; j < k + 11; ++j)
+      h.stepStatus(h.frames()[j], status);
+    const uint64_t complete = h.published() - skewed;
+    EXPECT_EQ(h.counter("unpaired stereo sets", complete), unpaired + 2);
+    EXPECT_EQ(h.counter("dropped: out of sync", complete), out_of_sync + 1);
+  }
 }
 
 // ~publish_when_lost (the node test sets it): while not tracking, ~target repeats the last tracked position,

@@ -354,9 +354,10 @@ void TrackerNodelet::unpairedCallback(const sensor_msgs::ImageConstPtr& left, co
     ++unpaired_;
     paired_before = frames_in_ > 0;
   }
-  // One camera frame is one left message: a right message whose stamp is skewed leaves a second, right-only
-  // set, which is not a second dropped frame (it is counted as an unpaired set only).
-  if (!left && !left_info)
+  // One camera frame is one left message with an image: a right message whose stamp is skewed leaves a second,
+  // right-only set, and a camera_info whose stamp is skewed a set of camera_info alone; neither is a second
+  // dropped frame (each is counted as an unpaired set only).
+  if ((!left && !left_info) || (!left && !right))
     return;
   drop(DropReason::OutOfSync,
        "a stereo set never completed (missing:" + missing + ")" +
