@@ -367,6 +367,24 @@ size_t settleAt(size_t k)
   return k;
 }
 
+/// Call ~set_target with the region (x, y, w, h) while frames from `first_frame` on are published (the service
+/// answers between frames); `srv` holds the answer. Fails when the call does not go through.
+testing::AssertionResult callSetTarget(int x, int y, int w, int height, size_t first_frame, stereo_pf::SetTarget& srv)
+{
+  Harness& h = *harness;
+  ros::ServiceClient client = h.nh().serviceClient<stereo_pf::SetTarget>(h.tracker() + "/set_target");
+  srv.request.roi.x_offset = x;
+  srv.request.roi.y_offset = y;
+  srv.request.roi.width = w;
+  srv.request.roi.height = height;
+  auto done = std::async(std::launch::async, [&] { return client.call(srv); });
+  if (!h.publishUntil(done, first_frame))
+    return testing::AssertionFailure() << "set_target did not answer";
+  if (!done.get())
+    return testing::AssertionFailure() << "the set_target call failed";
+  return testing::AssertionSuccess();
+}
+
 double percentile(std::vector<double> v, double q)
 {
   if (v.empty())
@@ -505,15 +523,8 @@ TEST(Tracker, ResetRestartsTheSearchAndRecovers)
 TEST(Tracker, SetTargetRejectsARegionOutsideTheImage)
 {
   Harness& h = *harness;
-  ros::ServiceClient client = h.nh().serviceClient<stereo_pf::SetTarget>(h.tracker() + "/set_target");
   stereo_pf::SetTarget srv;
-  srv.request.roi.x_offset = 5000;
-  srv.request.roi.y_offset = 5000;
-  srv.request.roi.width = 20;
-  srv.request.roi.height = 20;
-  auto done = std::async(std::launch::async, [&] { return client.call(srv); });
-  ASSERT_TRUE(h.publishUntil(done, 0));
-  ASSERT_TRUE(done.get());
+  ASSERT_TRUE(callSetTarget(5000, 5000, 20, 20, 0, srv));
   EXPECT_FALSE(srv.response.success);
   EXPECT_FALSE(srv.response.message.empty());
   // The previous target is kept: tracking goes on.
@@ -662,15 +673,8 @@ TEST(Tracker, BadCameraInfoDropsThatFrameOnly)
 TEST(Tracker, NoEstimateOrTfWhileNotTracking)
 {
   Harness& h = *harness;
-  ros::ServiceClient client = h.nh().serviceClient<stereo_pf::SetTarget>(h.tracker() + "/set_target");
   stereo_pf::SetTarget wall;
-  wall.request.roi.x_offset = 20;
-  wall.request.roi.y_offset = 20;
-  wall.request.roi.width = 40;
-  wall.request.roi.height = 40;
-  auto done = std::async(std::launch::async, [&] { return client.call(wall); });
-  ASSERT_TRUE(h.publishUntil(done, 0));
-  ASSERT_TRUE(done.get());
+  ASSERT_TRUE(callSetTarget(20, 20, 40, 40, 0, wall));
   ASSERT_TRUE(wall.response.success) << wall.response.message;
   int like_background = 0;
   for (size_t k = 0; k < 30; ++k)
@@ -855,15 +859,8 @@ TEST(Tracker, HeldEstimateWhileNotTrackingIsMarked)
   geometry_msgs::Point last;
   const size_t k = settleAt(20);
   ASSERT_TRUE(h.step(h.frames()[k], last));
-  ros::ServiceClient client = h.nh().serviceClient<stereo_pf::SetTarget>(h.tracker() + "/set_target");
   stereo_pf::SetTarget wall;
-  wall.request.roi.x_offset = 20;
-  wall.request.roi.y_offset = 20;
-  wall.request.roi.width = 40;
-  wall.request.roi.height = 40;
-  auto done = std::async(std::launch::async, [&] { return client.call(wall); });
-  ASSERT_TRUE(h.publishUntil(done, k + 1));
-  ASSERT_TRUE(done.get());
+  ASSERT_TRUE(callSetTarget(20, 20, 40, 40, k + 1, wall));
   ASSERT_TRUE(wall.response.success) << wall.response.message;
   // A new target clears the held one: nothing to repeat until something is tracked.
   stereo_pf::TrackStatus status;
