@@ -99,12 +99,7 @@ bool StereoInput::assemble(const sensor_msgs::ImageConstPtr& left, const sensor_
       return false;
     }
   }
-  why = checkCameraInfoPair(*left_info, *right_info);
-  if (!why.empty())
-  {
-    reason = DropReason::BadCameraInfo;
-    return false;
-  }
+  // The pair is checked by update() (checkCameraInfoPair), whenever the calibration changes.
   if (!calibration_.update(*left_info, *right_info, why))
   {
     reason = DropReason::BadCameraInfo;
