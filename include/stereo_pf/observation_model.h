@@ -61,6 +61,12 @@ public:
   /// (the default) or no target.
   virtual bool targetMap(FeatureCache& /*cache*/, View /*view*/, cv::Mat& /*map*/) { return false; }
 
+  /// Optional: follow the object's appearance. The engine calls this after each frame in which the tracked
+  /// object was seen (Support::Seen while tracking), with one hypothesis per view at the estimate (`estimate`
+  /// holds one entry; called once per view). A model that adapts must stay anchored to what it learned from the
+  /// box. Default: nothing.
+  virtual void adapt(FeatureCache& /*cache*/, const ImageHypotheses& /*estimate*/) {}
+
   /// Write the learned target under this plugin's name into an open cv::FileStorage.
   virtual void saveTarget(cv::FileStorage& fs) const = 0;
   /// Read the target written by saveTarget; false with `error` set when absent or inconsistent.

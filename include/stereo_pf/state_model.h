@@ -72,6 +72,11 @@ public:
                      Eigen::VectorXd& weights) const = 0;
   /// Re-read tunables after the parameters changed; called between frames. Default: onInitialize().
   virtual void reconfigure() { onInitialize(); }
+  /// The object's metric radius as learned with the target (FilterEngine::learnTarget measures it from the box
+  /// and its stereo match, the target file stores it); 0: unknown. Models that give their hypotheses an apparent
+  /// size use it unless their own `object_radius` parameter overrides it.
+  void setLearnedRadius(double radius) { learned_radius_ = radius > 0.0 ? radius : 0.0; }
+  double learnedRadius() const { return learned_radius_; }
 
   /// Instance name.
   const std::string& name() const { return name_; }
@@ -83,9 +88,17 @@ protected:
   /// The model's parameter namespace.
   const Parameters& params() const { return params_; }
 
+  /// The radius to use: `configured` when positive (the user's override), else the learned one, else
+  /// `fallback` (nothing learned yet, e.g. a target file from before sizes were stored).
+  double objectRadius(double configured, double fallback) const
+  {
+    return configured > 0.0 ? configured : learned_radius_ > 0.0 ? learned_radius_ : fallback;
+  }
+
 private:
   std::string name_;
   Parameters params_;
+  double learned_radius_ = 0.0;
 };
 
 }  // namespace stereo_pf

@@ -11,6 +11,12 @@
 
 namespace stereo_pf
 {
+namespace
+{
+/// The target file's entry for the size learned with the target.
+const char* const kTargetSizeNode = "target_size";
+}  // namespace
+
 std::string toString(TrackState state)
 {
   switch (state)
@@ -76,6 +82,7 @@ EngineConfig EngineConfig::fromParameters(const Parameters& p)
   c.max_depth = p.getDouble("max_depth", c.max_depth, 0.0, 1e6);
   c.background_samples = p.getInt("background_samples", c.background_samples, 0, 1000);
   c.background_margin = p.getDouble("background_margin", c.background_margin, 0.0, 1.0);
+  c.acquire = p.getBool("acquire", c.acquire);
   return c;
 }
 
@@ -160,7 +167,67 @@ bool FilterEngine::learnTarget(const StereoFrame& frame, const cv::Rect& roi, st
       return false;
     }
   }
+  if (!config_.acquire)
+    return true;
+  const BoxMatch match = matchBox(frame, roi);
+  if (!match.ok)
+  {
+    error = match.error;
+    restoreTargets(before);
+    return false;
+  }
+  acquisition_ = match;
+  target_radius_ = match.radius;
+  state_model_->setLearnedRadius(match.radius);
+  acquired_.pending = true;
+  acquired_.left = match.left;
+  acquired_.disparity = match.disparity;
+  acquired_.radius_px = 0.25 * (roi.width + roi.height);
   return true;
+}
+
+void FilterEngine::adaptTargets()
+{
+  // The models follow the object's look at the best-weighted particle of each set, in each of its views.
+  for (int s = 0; s < static_cast<int>(sets_.size()); ++s)
+  {
+    Eigen::Index best = 0;
+    sets_[s].weights.maxCoeff(&best);
+    for (const ImageHypotheses& hyp : hypotheses_[s])
+    {
+      if (best >= hyp.size())
+        continue;
+      ImageHypotheses& one = adapt_hyp_;
+      one.view = hyp.view;
+      one.resize(1);
+      one.u[0] = hyp.u[best];
+      one.v[0] = hyp.v[best];
+      one.radius[0] = hyp.radius[best];
+      one.valid[0] = hyp.valid[best];
+      for (auto& m : observation_models_)
+        if (m->enabled())
+          m->adapt(cache_, one);
+    }
+  }
+}
+
+void FilterEngine::seedAroundAcquisition(const StereoGeometry& geometry)
+{
+  // The box centre is known to a fraction of the object's apparent size, the disparity to about half a pixel
+  // (matchBox's parabola is finer, but a box drawn by hand is not centred to the pixel).
+  std::normal_distribution<double> lateral(0.0, std::max(0.5, 0.15 * acquired_.radius_px));
+  std::normal_distribution<double> disparity(0.0, 0.5);
+  for (int s = 0; s < static_cast<int>(sets_.size()); ++s)
+  {
+    ParticleSet& p = sets_[s];
+    for (int i = 0; i < p.size(); ++i)
+    {
+      const Pixel left{ acquired_.left.u + lateral(rng_), acquired_.left.v + lateral(rng_) };
+      const double d = std::max(0.5 * acquired_.disparity, acquired_.disparity + disparity(rng_));
+      state_model_->seedFromStereo(geometry, s, p, i, left, Pixel{ left.u - d, left.v });
+    }
+    p.weights.setConstant(1.0 / p.size());
+  }
 }
 
 std::string FilterEngine::snapshotTargets() const
@@ -203,6 +270,8 @@ bool FilterEngine::saveTarget(const std::string& path, std::string& error) const
     for (const auto& m : observation_models_)
       if (m->hasTarget())
         m->saveTarget(fs);
+    if (target_radius_ > 0.0)
+      fs << kTargetSizeNode << "{" << "radius" << target_radius_ << "}";
     return true;
   }
   catch (const cv::Exception& e)
@@ -225,7 +294,8 @@ bool FilterEngine::loadTarget(const std::string& path, std::string& error)
     // Every model must find its entry before any target changes (a file saved with other cues).
     std::vector<std::string> present, missing;
     for (const auto& node : fs.root())
-      present.push_back(node.name());
+      if (node.name() != kTargetSizeNode)
+        present.push_back(node.name());
     for (const auto& m : observation_models_)
       if (fs[m->name()].empty())
         missing.push_back(m->name());
@@ -253,6 +323,14 @@ bool FilterEngine::loadTarget(const std::string& path, std::string& error)
         return false;
       }
     }
+    // The size learned with the target (files from before sizes were stored have none: the state model's
+    // object_radius or its fallback then holds).
+    const cv::FileNode size = fs[kTargetSizeNode];
+    double radius = 0.0;
+    if (!size.empty() && size["radius"].isReal())
+      radius = static_cast<double>(size["radius"]);
+    target_radius_ = std::isfinite(radius) && radius > 0.0 ? radius : 0.0;
+    state_model_->setLearnedRadius(target_radius_);
     return true;
   }
   catch (const cv::Exception& e)
@@ -582,7 +660,16 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
   last_stamp_ = frame.stamp;
   result.dt = dt;
 
-  if (!initialised_)
+  if (acquired_.pending)
+  {
+    // The user's box says where the object is: start there, tracking.
+    initialiseParticles(geometry);
+    seedAroundAcquisition(geometry);
+    acquired_.pending = false;
+    state_ = TrackState::Tracking;
+    seen_count_ = unseen_count_ = state_frames_ = 0;
+  }
+  else if (!initialised_)
     initialiseParticles(geometry);
   else
   {
@@ -687,6 +774,8 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
   }
   result.support = support;
   updateTrackState(support, result);
+  if (support == Support::Seen && state_ == TrackState::Tracking)
+    adaptTargets();
 
   weighted_sets_ = sets_;  // a copy into the same buffers every frame: the weights resampling erases
   for (ParticleSet& p : sets_)

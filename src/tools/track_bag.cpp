@@ -31,15 +31,16 @@ const char* kUsage =
     "  --target-roi x,y,w,h     learn the target from this box of the left image of frame K\n"
     "  --target-frame K         (default 0; without --target-roi the bag's ground_truth/target_roi of frame K)\n"
     "  --target-model FILE      load a saved target instead     --save-target FILE   save the learned one\n"
-    "  --output CSV             one row per frame\n"
+    "  --output CSV             one row per frame: the estimate, its variances and images, ess, state, ms, the\n"
+    "                           evidence and background similarity and what they said (support), the truth\n"
     "  --left-image T --right-image T --left-info T --right-info T --truth T   topic overrides\n"
     "  --rectified              images are already rectified (e.g. stereo_image_proc's image_rect_color)\n"
     "  --quiet                  only the summary line\n"
     "  --baseline NAME          instead of a particle filter, OpenCV's csrt, kcf or camshift in each image, both\n"
     "                           started from the target box (right box by template matching), centres triangulated;\n"
     "                           the filter's options (--config --set --state --particles --seed --target-model\n"
-    "                           --save-target) are refused with it. CSV: sxx..szz and ess are empty, and x..szz\n"
-    "                           too in frames without a 3D estimate (state lost)\n";
+    "                           --save-target) are refused with it. CSV: sxx..szz, ess, evidence and background\n"
+    "                           are empty, and x..szz too in frames without a 3D estimate (state lost)\n";
 
 struct Options
 {
@@ -201,6 +202,8 @@ struct StepResult
   std::optional<Eigen::Vector3d> variance;  ///< its variances along x, y, z, m^2
   std::optional<stereo_pf::Pixel> left, right;  ///< the estimate in each image
   std::optional<double> ess;                ///< effective sample size
+  std::optional<double> evidence, background;  ///< FrameResult's evidence and background similarity
+  std::string support;                      ///< what the frame's evidence said (toString(Support))
   stereo_pf::TrackState state = stereo_pf::TrackState::Searching;
 };
 
@@ -224,7 +227,7 @@ class FilterMethod : public Method
 {
 public:
   explicit FilterMethod(const Options& o)
-    : params_(buildParameters(o)), tracker_(params_), save_target_(o.save_target)
+    : params_(buildParameters(o)), tracker_(params_), save_target_(o.save_target), quiet_(o.quiet)
   {
     // A misspelt key would otherwise be ignored without a word (the nodelet's own keys are not ours to read).
     for (const auto& m : stereo_pf::unknownParameters(params_, stereo_pf::kRosRuntimeParameters))
@@ -245,6 +248,10 @@ public:
   {
     if (!engine().learnTarget(frame, roi, error))
       return false;
+    const stereo_pf::BoxMatch& a = engine().acquisition();
+    if (a.ok && !quiet_)
+      std::printf("acquired: disparity %.2f px (score %.2f), centre (%.3f, %.3f, %.3f) m, radius %.2f cm\n",
+                  a.disparity, a.score, a.centre.x(), a.centre.y(), a.centre.z(), 100.0 * a.radius);
     if (!save_target_.empty() && !engine().saveTarget(save_target_, error))
       throw std::runtime_error(error);
     return true;
@@ -261,6 +268,9 @@ public:
     s.left = r.estimate.left;
     s.right = r.estimate.right;
     s.ess = r.ess;
+    s.evidence = r.evidence;
+    s.background = r.background;
+    s.support = stereo_pf::toString(r.support);
     s.state = r.state;
     return s;
   }
@@ -271,6 +281,7 @@ private:
   stereo_pf::Parameters params_;  // before tracker_: it is built from it
   stereo_pf::Tracker tracker_;
   std::string save_target_;
+  bool quiet_ = false;
 };
 
 /// An OpenCV tracker in each image, triangulated (stereo_pf::StereoBaselineTracker).
@@ -319,7 +330,7 @@ public:
     csv_.open(path);
     if (!csv_)
       throw std::runtime_error("cannot write '" + path + "'");
-    csv_ << "frame,stamp,x,y,z,sxx,syy,szz,u_left,v_left,u_right,v_right,ess,state,ms";
+    csv_ << "frame,stamp,x,y,z,sxx,syy,szz,u_left,v_left,u_right,v_right,ess,state,ms,evidence,background,support";
     if (with_truth_)
       csv_ << ",gt_x,gt_y,gt_z,err";
     csv_ << "\n";
@@ -362,6 +373,9 @@ private:
     }
     field(r.ess);
     csv_ << "," << stereo_pf::toString(r.state) << "," << rec.ms;
+    field(r.evidence);
+    field(r.background);
+    csv_ << "," << r.support;
     if (with_truth_)
     {
       if (bf.has_truth)

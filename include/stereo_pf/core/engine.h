@@ -9,6 +9,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "stereo_pf/core/acquisition.h"
 #include "stereo_pf/core/estimators.h"
 #include "stereo_pf/core/feature_cache.h"
 #include "stereo_pf/core/parameters.h"
@@ -83,6 +84,10 @@ struct EngineConfig
   /// where it does not is "like background" (not seen): a target whose appearance is everywhere, e.g. learned
   /// from a box that holds mostly wall, is never tracked.
   double background_margin = 0.2;
+  /// Acquisition (learnTarget): match the user's box in the right image (matchBox), learn the object's metric
+  /// size from it, and start the particles around that 3D point, tracking. False: the thesis's start, the
+  /// particles spread over the viewing volume and searching (the size then comes from `object_radius`).
+  bool acquire = true;
 
   /// Read from `params` (missing keys keep their defaults); throws ParameterError.
   static EngineConfig fromParameters(const Parameters& params);
@@ -127,8 +132,12 @@ public:
   /// Thread-safe: takes effect at the start of the next step().
   void reset();
 
-  /// Learn the target from `roi` in the left image of `frame` (every observation model learns it).
-  /// Returns false with `error` set when any model cannot; then every model that had a target keeps it.
+  /// Learn the target from `roi` in the left image of `frame` (every observation model learns it) and, with
+  /// `acquire`, acquire it: the box is matched along the right image's rows (matchBox), which gives its 3D
+  /// centre and metric radius; the radius goes to the state model (StateModel::setLearnedRadius) and the target
+  /// file, and the next step() starts the particles around that point in Tracking (a reset() after this call
+  /// does not undo it). Returns false with `error` set when any model cannot learn the box or the match fails
+  /// (ambiguous, none, too far: the error names the box); then every model that had a target keeps it.
   bool learnTarget(const StereoFrame& frame, const cv::Rect& roi, std::string& error);
   /// True when every enabled observation model has a target.
   bool hasTarget() const;
@@ -156,12 +165,22 @@ public:
   const std::vector<std::vector<ImageHypotheses>>& hypotheses() const { return hypotheses_; }
   /// The viewing volume of the last step's frame (default-constructed before the first step).
   const ViewingVolume& viewingVolume() const { return volume_; }
+  /// The object's metric radius learned with the target (0: none learned).
+  double targetRadius() const { return target_radius_; }
+  /// The last successful acquisition's match (BoxMatch::ok false before any).
+  const BoxMatch& acquisition() const { return acquisition_; }
 
 private:
   void applyPending();
   void initialiseParticles(const StereoGeometry& geometry);
   void respawn(const StereoGeometry& geometry, int set, int count);
   void prepareProposals(const StereoGeometry& geometry, int count);
+  /// Draw every set around the acquired point (acquired_): its left pixel jittered by a fraction of the apparent
+  /// radius, its disparity by half a pixel, through StateModel::seedFromStereo (rows it rejects keep their
+  /// prior draw).
+  void seedAroundAcquisition(const StereoGeometry& geometry);
+  /// After a frame in which the tracked object was seen: every model's adapt() at the best particle's views.
+  void adaptTargets();
   /// Classify the frame's evidence (Support) against the thresholds and the background.
   Support judge(double evidence, double background, bool background_measured) const;
   /// Track state machine; a loss to the background or the volume re-initialises the sets.
@@ -209,6 +228,17 @@ private:
   int unseen_count_ = 0;
   int state_frames_ = 0;
   ViewingVolume volume_;
+  /// The last acquisition from a box, applied at the next step.
+  struct Acquired
+  {
+    bool pending = false;
+    Pixel left;               ///< the box centre, left image
+    double disparity = 0.0;   ///< its matched disparity, px
+    double radius_px = 0.0;   ///< the box's half-size, px
+  };
+  Acquired acquired_;
+  BoxMatch acquisition_;
+  double target_radius_ = 0.0;
 
   // detection-driven proposals of this frame: (left pixel, right pixel) pairs
   std::vector<std::pair<Pixel, Pixel>> proposals_;
@@ -217,7 +247,7 @@ private:
 
   // scratch buffers kept across frames
   Eigen::VectorXd scratch_ll_, scratch_sim_, sum_sim_;
-  ImageHypotheses background_hyp_;
+  ImageHypotheses background_hyp_, adapt_hyp_;
   Eigen::VectorXd background_ll_, background_sim_, background_sum_;
   std::vector<double> background_values_;
   std::vector<int> resample_indices_;

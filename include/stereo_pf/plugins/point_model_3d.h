@@ -12,7 +12,8 @@ public:
   /// One set, observed in both images.
   std::vector<View> views(int set) const override;
   /// Uniform over the part of the viewing frustum seen by both cameras, between z_min and z_max
-  /// (`init_depth`: uniform in volume, the default, in depth, or in disparity).
+  /// (`init_depth`: uniform in disparity, the default: as many particles per pixel of disparity at every range;
+  /// in volume; or in depth).
   void samplePrior(const StereoGeometry& geometry, int set, ParticleSet& particles, int begin, int end,
                    Rng& rng) const override;
   /// Triangulate the pair; false outside [z_min, z_max].
@@ -32,12 +33,21 @@ public:
 protected:
   /// Read the shared parameters: noise, z_min, z_max, init_depth, object_radius.
   void readCommonParameters();
+  /// The prior's depth range: z_min / z_max, or where they are 0 the camera's own (the depth at which the
+  /// disparity equals the image width, and the depth at which it falls to one pixel).
+  void depthRange(const StereoGeometry& geometry, double& z_min, double& z_max) const;
+  /// The sphere's radius, m: `object_radius` when set, else the one learned with the target, else 3.5 cm.
+  double radius() const;
+  static constexpr double kDefaultRadius = 0.035;
   /// Random-walk noise on x, y, z per frame (thesis eq. 5.12-5.14, the same alpha on every axis), m.
   double noise_ = 0.04;
-  double z_min_ = 0.3;          ///< nearest depth of the prior, m
-  double z_max_ = 3.0;          ///< farthest depth of the prior, m
-  std::string init_depth_ = "volume";
-  double object_radius_ = 0.035;  ///< radius of the tracked sphere, m (sets the apparent radius)
+  double z_min_ = 0.0;          ///< nearest depth of the prior, m (0: from the camera)
+  double z_max_ = 0.0;          ///< farthest depth of the prior, m (0: from the camera)
+  std::string init_depth_ = "disparity";
+  double object_radius_ = 0.0;  ///< radius of the tracked sphere, m (0: learned with the target)
+  /// Relative depth band around the cloud's mean depth in which every particle gets that depth's apparent
+  /// radius (so a size error cannot bias depth; 0: each particle its own f R / z, the thesis).
+  double size_band_ = 0.1;
 };
 
 }  // namespace stereo_pf

@@ -22,9 +22,13 @@ public:
 };
 
 /// The observation models used when the configuration lists none: (type, name) pairs. The colour histogram
-/// (thesis 4.1) finds the object; its colour outline, a refining cue, pins it to a fraction of a pixel.
+/// (thesis 4.1) and the grey-level template of the boxed object find it (the template carries grey images and
+/// grey or white objects, where colour cannot tell the object from the background); the colour outline, a
+/// refining cue, pins it to a fraction of a pixel.
 const std::vector<std::pair<std::string, std::string>> kDefaultObservationModels = {
-  { "stereo_pf/ColourHSI", "colour" }, { "stereo_pf/ColourContour", "colour_contour" }
+  { "stereo_pf/ColourHSI", "colour" },
+  { "stereo_pf/TemplateMatch", "template" },
+  { "stereo_pf/ColourContour", "colour_contour" }
 };
 
 /// The tracker nodelet's own parameters (read once at start-up) and those its reconfigure servers write

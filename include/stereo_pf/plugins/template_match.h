@@ -1,0 +1,90 @@
+// The appearance-template observation model, pluginlib class stereo_pf/TemplateMatch. Declared here so tests can
+// construct it directly; defined and exported in plugins/observation/template_match.cpp.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "stereo_pf/observation_model.h"
+
+namespace stereo_pf
+{
+/// Grey-level template likelihood: does the hypothesis's window look like the object the user boxed?
+///
+/// Why: a colour histogram tells a saturated object from its surroundings, but on mono8/mono16 images, and for
+/// white or grey objects, it scores most of the background nearly as high as the target (on the stress suite's
+/// grey scenes: 1.0 at the target, 0.9 beside it), so the track cannot be told from the background. The
+/// object's grey-level structure, its texture and its outline against the surroundings, can.
+///
+/// Model. The template is `size` x `size` grey values sampled (nearest pixel) over the box grown by `ring_scale`
+/// about its centre, weighted 1 inside the box's inscribed ellipse, `ring_weight` in the ring out to the grown
+/// ellipse and 0 in the corners; stored zero-mean with unit weighted norm. A hypothesis (u, v, r) samples the same
+/// grid over its window (half-size ring_scale r times the box's aspect; 2D hypotheses, r <= 0, use the box's
+/// half-size) and scores the weighted zero-mean normalised cross-correlation c in [-1, 1] (one pass of three sums,
+/// so a gain and offset between the cameras or frames does not matter):
+///   log-likelihood = (c - 1) / sigma,   similarity = max(0, c).
+/// A window without contrast has c = 0. Invalid or non-finite hypotheses score c = -1.
+///
+/// Adaptation (adapt(), called by the engine after frames in which the tracked object was seen): when the window
+/// at the estimate correlates with the current template by at least `adapt_min`, a running template moves towards
+/// it by `adapt_rate`; the template used is `anchor` parts the one learned from the box and the rest the running
+/// one, so it follows a turning object but cannot drift away from what was boxed. Not thread-safe.
+///
+/// Parameters (in the plugin's namespace): size (13, 5..41; structural), ring_scale (1.25, 1..3), ring_weight
+/// (0.3, 0..1), sigma (0.1, 0.001..10), adapt_rate (0.1, 0..1; 0: no adaptation), adapt_min (0.6, -1..1),
+/// anchor (0.3, 0..1).
+class TemplateMatch : public ObservationModel
+{
+public:
+  TemplateMatch() = default;
+  /// Sample the template over `roi` (grown by ring_scale) of `view`'s grey image. False with `error` when the
+  /// region is empty or outside the image, or holds no contrast.
+  bool learnTarget(FeatureCache& cache, View view, const cv::Rect& roi, std::string& error) override;
+  bool hasTarget() const override { return !learned_.empty(); }
+  void evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
+                Eigen::Ref<Eigen::VectorXd> similarity) override;
+  void adapt(FeatureCache& cache, const ImageHypotheses& estimate) override;
+  /// Write a map named name() with the size, aspect, the box's half-size and the learned template.
+  void saveTarget(cv::FileStorage& fs) const override;
+  bool loadTarget(const cv::FileNode& node, std::string& error) override;
+  void reconfigure() override;
+  /// Correlation of the window at (u, v, radius) of `view` with the template in use (tests, diagnostics).
+  double correlation(FeatureCache& cache, View view, double u, double v, double radius);
+
+protected:
+  void onInitialize() override;
+
+private:
+  struct Tunables
+  {
+    double ring_scale = 1.25;
+    double ring_weight = 0.3;
+    double sigma = 0.1;
+    double adapt_rate = 0.1;
+    double adapt_min = 0.6;
+    double anchor = 0.3;
+  };
+  Tunables readTunables() const;
+  /// The sampling weights of the grid (ellipse, ring, corners).
+  void makeWeights();
+  /// Sample the grid at (u, v) with half-sizes (hx, hy) from `gray` into `out` (size*size values).
+  void sample(const cv::Mat& gray, double u, double v, double hx, double hy, std::vector<float>& out) const;
+  /// Zero-mean, unit weighted norm; false when the values have no contrast.
+  bool normalise(std::vector<float>& values) const;
+  /// Weighted ZNCC of raw samples with the template in use.
+  double score(const std::vector<float>& samples) const;
+  /// Window half-sizes for an apparent radius (<= 0: the box's).
+  void halfSizes(double radius, double& hx, double& hy) const;
+  void useTemplate();
+
+  Tunables tunables_;
+  int size_ = 13;
+  std::vector<float> weights_;
+  double weight_sum_ = 0.0;
+  std::vector<float> learned_, running_, current_;  ///< normalised templates (current_ = anchor mix)
+  double box_radius_ = 0.0;  ///< half the box's mean side, px (2D hypotheses)
+  double aspect_x_ = 1.0, aspect_y_ = 1.0;  ///< the box's half-width and half-height over box_radius_
+  std::vector<float> scratch_;
+};
+
+}  // namespace stereo_pf

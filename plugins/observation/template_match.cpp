@@ -1,0 +1,273 @@
+// Grey-level template observation model (weighted ZNCC with the boxed object, slowly adapted);
+// see include/stereo_pf/plugins/template_match.h.
+#include "stereo_pf/plugins/template_match.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <pluginlib/class_list_macros.hpp>
+
+#include "stereo_pf/core/histogram.h"
+
+namespace stereo_pf
+{
+namespace
+{
+const char* const kType = "stereo_pf/TemplateMatch";
+}  // namespace
+
+void TemplateMatch::onInitialize()
+{
+  size_ = params().getInt("size", size_, 5, 41);
+  tunables_ = readTunables();
+  makeWeights();
+}
+
+TemplateMatch::Tunables TemplateMatch::readTunables() const
+{
+  const Parameters& p = params();
+  Tunables t;
+  t.ring_scale = p.getDouble("ring_scale", t.ring_scale, 1.0, 3.0);
+  t.ring_weight = p.getDouble("ring_weight", t.ring_weight, 0.0, 1.0);
+  t.sigma = p.getDouble("sigma", t.sigma, 0.001, 10.0);
+  t.adapt_rate = p.getDouble("adapt_rate", t.adapt_rate, 0.0, 1.0);
+  t.adapt_min = p.getDouble("adapt_min", t.adapt_min, -1.0, 1.0);
+  t.anchor = p.getDouble("anchor", t.anchor, 0.0, 1.0);
+  return t;
+}
+
+void TemplateMatch::reconfigure()
+{
+  const Tunables t = readTunables();  // throws before anything changes
+  ObservationModel::reconfigure();
+  const bool reweigh = t.ring_scale != tunables_.ring_scale || t.ring_weight != tunables_.ring_weight;
+  tunables_ = t;
+  if (reweigh)
+    makeWeights();  // a learned template keeps its samples; only their weighting changes
+  useTemplate();
+}
+
+void TemplateMatch::makeWeights()
+{
+  weights_.assign(static_cast<size_t>(size_) * size_, 0.0f);
+  weight_sum_ = 0.0;
+  const double c = 0.5 * (size_ - 1);
+  for (int y = 0; y < size_; ++y)
+    for (int x = 0; x < size_; ++x)
+    {
+      // Distance from the centre in units of the box's half-size (the grid spans ring_scale of it).
+      const double dx = (x - c) / c * tunables_.ring_scale, dy = (y - c) / c * tunables_.ring_scale;
+      const double rho = std::sqrt(dx * dx + dy * dy);
+      const float w = rho <= 1.0 ? 1.0f : rho <= tunables_.ring_scale ? static_cast<float>(tunables_.ring_weight) : 0.0f;
+      weights_[static_cast<size_t>(y) * size_ + x] = w;
+      weight_sum_ += w;
+    }
+}
+
+void TemplateMatch::halfSizes(double radius, double& hx, double& hy) const
+{
+  const double r = radius > 0.0 ? radius : box_radius_;
+  hx = tunables_.ring_scale * r * aspect_x_;
+  hy = tunables_.ring_scale * r * aspect_y_;
+}
+
+void TemplateMatch::sample(const cv::Mat& gray, double u, double v, double hx, double hy, std::vector<float>& out) const
+{
+  out.resize(static_cast<size_t>(size_) * size_);
+  const double c = 0.5 * (size_ - 1);
+  const double sx = hx / c, sy = hy / c;
+  int cols[41];
+  for (int x = 0; x < size_; ++x)
+    cols[x] = std::clamp(static_cast<int>(std::lround(u + (x - c) * sx)), 0, gray.cols - 1);
+  for (int y = 0; y < size_; ++y)
+  {
+    const uint8_t* row = gray.ptr<uint8_t>(std::clamp(static_cast<int>(std::lround(v + (y - c) * sy)), 0, gray.rows - 1));
+    float* o = out.data() + static_cast<size_t>(y) * size_;
+    for (int x = 0; x < size_; ++x)
+      o[x] = row[cols[x]];
+  }
+}
+
+bool TemplateMatch::normalise(std::vector<float>& values) const
+{
+  double mean = 0.0;
+  for (size_t i = 0; i < values.size(); ++i)
+    mean += weights_[i] * values[i];
+  mean /= weight_sum_;
+  double norm = 0.0;
+  for (size_t i = 0; i < values.size(); ++i)
+  {
+    values[i] = static_cast<float>(values[i] - mean);
+    norm += weights_[i] * values[i] * values[i];
+  }
+  if (!(norm > 1e-6 * weight_sum_))  // below ~0.001 grey levels of spread: no structure to correlate
+    return false;
+  const double scale = 1.0 / std::sqrt(norm);
+  for (float& x : values)
+    x = static_cast<float>(x * scale);
+  return true;
+}
+
+double TemplateMatch::score(const std::vector<float>& samples) const
+{
+  // With the template zero-mean under the weights, sum w t (p - mean p) = sum w t p.
+  double st = 0.0, s = 0.0, ss = 0.0;
+  for (size_t i = 0; i < samples.size(); ++i)
+  {
+    const double w = weights_[i], p = samples[i];
+    st += w * current_[i] * p;
+    s += w * p;
+    ss += w * p * p;
+  }
+  const double var = ss - s * s / weight_sum_;
+  if (!(var > 1e-6 * weight_sum_))
+    return 0.0;
+  return std::clamp(st / std::sqrt(var), -1.0, 1.0);
+}
+
+void TemplateMatch::useTemplate()
+{
+  if (learned_.empty())
+    return;
+  if (running_.size() != learned_.size())
+    running_ = learned_;
+  current_.resize(learned_.size());
+  for (size_t i = 0; i < learned_.size(); ++i)
+    current_[i] = static_cast<float>(tunables_.anchor * learned_[i] + (1.0 - tunables_.anchor) * running_[i]);
+  if (!normalise(current_))
+    current_ = learned_;
+}
+
+bool TemplateMatch::learnTarget(FeatureCache& cache, View view, const cv::Rect& roi, std::string& error)
+{
+  cv::Rect inner;
+  std::string reason;
+  const cv::Mat& gray = cache.gray(view);
+  if (!targetRegion(gray.size(), roi, 0.0, inner, reason))
+  {
+    error = name() + ": " + reason;
+    return false;
+  }
+  const double radius = 0.25 * (roi.width + roi.height);
+  const double ax = 0.5 * roi.width / radius, ay = 0.5 * roi.height / radius;
+  std::vector<float> t;
+  const double hx = tunables_.ring_scale * radius * ax, hy = tunables_.ring_scale * radius * ay;
+  sample(gray, roi.x + 0.5 * roi.width - 0.5, roi.y + 0.5 * roi.height - 0.5, hx, hy, t);
+  if (!normalise(t))
+  {
+    error = name() + ": the box " + describeRect(roi) + " and its surroundings are one flat grey level: nothing to " +
+            "match (draw the box around the object, on its edge with the background)";
+    return false;
+  }
+  box_radius_ = radius;
+  aspect_x_ = ax;
+  aspect_y_ = ay;
+  learned_ = t;
+  running_ = t;
+  useTemplate();
+  return true;
+}
+
+void TemplateMatch::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
+                             Eigen::Ref<Eigen::VectorXd> similarity)
+{
+  const int n = hyp.size();
+  if (current_.empty())
+  {
+    log_likelihood.setConstant(-2.0 / tunables_.sigma);
+    similarity.setZero();
+    return;
+  }
+  const cv::Mat& gray = cache.gray(hyp.view);
+  for (int i = 0; i < n; ++i)
+  {
+    double c = -1.0;
+    if (hyp.valid[i] && std::isfinite(hyp.u[i]) && std::isfinite(hyp.v[i]) && std::isfinite(hyp.radius[i]))
+    {
+      double hx, hy;
+      halfSizes(hyp.radius[i], hx, hy);
+      sample(gray, hyp.u[i], hyp.v[i], hx, hy, scratch_);
+      c = score(scratch_);
+    }
+    log_likelihood[i] = (c - 1.0) / tunables_.sigma;
+    similarity[i] = std::max(0.0, c);
+  }
+}
+
+double TemplateMatch::correlation(FeatureCache& cache, View view, double u, double v, double radius)
+{
+  if (current_.empty())
+    return 0.0;
+  double hx, hy;
+  halfSizes(radius, hx, hy);
+  sample(cache.gray(view), u, v, hx, hy, scratch_);
+  return score(scratch_);
+}
+
+void TemplateMatch::adapt(FeatureCache& cache, const ImageHypotheses& estimate)
+{
+  if (current_.empty() || tunables_.adapt_rate <= 0.0 || estimate.size() < 1 || !estimate.valid[0])
+    return;
+  double hx, hy;
+  halfSizes(estimate.radius[0], hx, hy);
+  sample(cache.gray(estimate.view), estimate.u[0], estimate.v[0], hx, hy, scratch_);
+  if (score(scratch_) < tunables_.adapt_min || !normalise(scratch_))
+    return;  // not confidently the object: the template stays
+  const double a = tunables_.adapt_rate;
+  for (size_t i = 0; i < running_.size(); ++i)
+    running_[i] = static_cast<float>((1.0 - a) * running_[i] + a * scratch_[i]);
+  if (!normalise(running_))
+    running_ = learned_;
+  useTemplate();
+}
+
+void TemplateMatch::saveTarget(cv::FileStorage& fs) const
+{
+  if (learned_.empty())
+    return;
+  fs << name() << "{";
+  fs << "type" << kType << "size" << size_ << "box_radius" << box_radius_ << "aspect_x" << aspect_x_ << "aspect_y"
+     << aspect_y_;
+  fs << "template" << std::vector<float>(learned_);
+  fs << "}";
+}
+
+bool TemplateMatch::loadTarget(const cv::FileNode& node, std::string& error)
+{
+  const cv::FileNode m = node.isMap() && !node["template"].empty() ? node : node[name()];
+  if (m.empty() || !m.isMap() || !m["template"].isSeq())
+  {
+    error = name() + ": no template target named '" + name() + "' in the file";
+    return false;
+  }
+  int size = 0;
+  m["size"] >> size;
+  std::vector<float> t;
+  m["template"] >> t;
+  double radius = 0.0, ax = 0.0, ay = 0.0;
+  m["box_radius"] >> radius;
+  m["aspect_x"] >> ax;
+  m["aspect_y"] >> ay;
+  if (size != size_ || static_cast<int>(t.size()) != size_ * size_)
+  {
+    error = name() + ": the template was learned with size " + std::to_string(size) + " (" + std::to_string(t.size()) +
+            " values); this model uses size " + std::to_string(size_);
+    return false;
+  }
+  if (!(radius > 0.0) || !(ax > 0.0) || !(ay > 0.0) || !std::all_of(t.begin(), t.end(), [](float x) { return std::isfinite(x); }))
+  {
+    error = name() + ": the template's box_radius, aspect or values are not valid";
+    return false;
+  }
+  box_radius_ = radius;
+  aspect_x_ = ax;
+  aspect_y_ = ay;
+  learned_ = t;
+  running_ = t;
+  useTemplate();
+  return true;
+}
+
+}  // namespace stereo_pf
+
+PLUGINLIB_EXPORT_CLASS(stereo_pf::TemplateMatch, stereo_pf::ObservationModel)
