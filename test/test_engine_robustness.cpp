@@ -43,6 +43,16 @@ std::vector<std::shared_ptr<ObservationModel>> defaultCues()
   return { cue<ColourHSI>("colour"), cue<ColourContour>("colour_contour") };
 }
 
+/// The search path (EngineConfig::acquire false): a learned box is not matched, the particles start from the
+/// prior. The tests of the background check need it: with acquisition a box of wall is refused at once
+/// (EngineBounds.AcquisitionRefusesABoxOfWall).
+EngineConfig searchOnly()
+{
+  EngineConfig config;
+  config.acquire = false;
+  return config;
+}
+
 /// Frames of a shipped scene, rendered once per test.
 class Scene
 {
@@ -106,7 +116,7 @@ TEST(ViewingVolume, FollowsTheCalibration)
 TEST(EngineBounds, ATargetLearnedAFrameLateNeverDivergesAndIsNeverTrackedWrongly)
 {
   Scene scene("pendulum_uncluttered.yaml");
-  FilterEngine engine(position3D(), defaultCues(), EngineConfig());
+  FilterEngine engine(position3D(), defaultCues(), searchOnly());
   std::string error;
   ASSERT_TRUE(engine.learnTarget(scene.frame(13), scene.renderer().targetRoi(12), error)) << error;
   double max_z = 0.0;
@@ -138,11 +148,31 @@ TEST(EngineBounds, ATargetLearnedAFrameLateNeverDivergesAndIsNeverTrackedWrongly
   EXPECT_GT(like_background, 0) << "the background check never recognised the target as background";
 }
 
+// With acquisition (the default) a box of wall has no match in the right image: learning it is refused with an
+// error naming the box, and the engine keeps no target.
+TEST(EngineBounds, AcquisitionRefusesABoxOfWall)
+{
+  Scene scene("pendulum_uncluttered.yaml");
+  FilterEngine engine(position3D(), defaultCues(), EngineConfig());
+  std::string error;
+  EXPECT_FALSE(engine.learnTarget(scene.frame(0), cv::Rect(20, 20, 40, 40), error));
+  EXPECT_NE(error.find("box 20,20,40,40"), std::string::npos) << error;
+  EXPECT_FALSE(engine.hasTarget());
+  // The ball's own box is acquired: its 3D centre within 3 % of the truth and its radius within 3 %.
+  ASSERT_TRUE(engine.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
+  const Eigen::Vector3d truth = scene.renderer().targetPosition(0);
+  EXPECT_LT((engine.acquisition().centre - truth).norm(), 0.03 * truth.norm());
+  EXPECT_NEAR(engine.targetRadius(), 0.035, 0.03 * 0.035);
+  const FrameResult r = engine.step(scene.frame(0));
+  EXPECT_EQ(r.state, TrackState::Tracking);  // started where the box is
+  EXPECT_LT((r.estimate.position - truth).norm(), 0.02);
+}
+
 // A target learned on a patch of the wall is everywhere: never tracked, never outside the volume.
 TEST(EngineBounds, ATargetLearnedOnTheWallIsNeverTracked)
 {
   Scene scene("pendulum_uncluttered.yaml");
-  FilterEngine engine(position3D(), defaultCues(), EngineConfig());
+  FilterEngine engine(position3D(), defaultCues(), searchOnly());
   std::string error;
   ASSERT_TRUE(engine.learnTarget(scene.frame(0), cv::Rect(20, 20, 40, 40), error)) << error;
   for (int k = 0; k < 40; ++k)
@@ -273,7 +303,7 @@ TEST(EngineTransactions, AFailedLearnKeepsEveryCuesTarget)
   auto refusing = std::make_shared<Refusing>();
   refusing->initialize("texture_like", Parameters());
   FilterEngine engine(position3D(), { cue<ColourHSI>("colour"), cue<ColourContour>("colour_contour"), refusing },
-                      EngineConfig());
+                      searchOnly());  // the cues' transaction, on a box of wall (which acquisition would refuse first)
   const StereoFrame f = scene.frame(0);
   std::string error;
   ASSERT_TRUE(engine.learnTarget(f, scene.renderer().targetRoi(0), error)) << error;
@@ -292,7 +322,7 @@ TEST(EngineTransactions, ATargetFileMissingACueChangesNothing)
   std::string error;
   {
     // Saved with the colour histogram only (another configuration), from a region of wall.
-    FilterEngine colour_only(position3D(), { cue<ColourHSI>("colour") }, EngineConfig());
+    FilterEngine colour_only(position3D(), { cue<ColourHSI>("colour") }, searchOnly());
     ASSERT_TRUE(colour_only.learnTarget(f, cv::Rect(20, 20, 40, 40), error)) << error;
     ASSERT_TRUE(colour_only.saveTarget(path, error)) << error;
   }

@@ -101,21 +101,23 @@ TEST(PluginLoading, ConfigurationBuildsTheListedModelsWithTheirParameters)
   EXPECT_DOUBLE_EQ(models[1]->weight(), 0.5);
 }
 
-// Without a list: the colour histogram and its outline (a refining cue), each under its own namespace; the
-// `refine` switch is a common parameter of every cue.
-TEST(PluginLoading, DefaultCuesAreTheColourHistogramAndItsOutline)
+// Without a list: the colour histogram, the grey-level template and the colour outline (a refining cue), each
+// under its own namespace; the `refine` switch is a common parameter of every cue.
+TEST(PluginLoading, DefaultCuesAreTheColourHistogramTheTemplateAndTheOutline)
 {
   Parameters p;
   loadYamlString("colour_contour: {sigma: 0.08}\nstereo_cue: {refine: false}\n", p);
   Tracker tracker(p);
   EXPECT_EQ(tracker.pluginTypes(), (std::vector<std::string>{ "stereo_pf/Position3D", "stereo_pf/ColourHSI",
-                                                               "stereo_pf/ColourContour" }));
+                                                               "stereo_pf/TemplateMatch", "stereo_pf/ColourContour" }));
   const auto& models = tracker.engine().observationModels();
-  ASSERT_EQ(models.size(), 2u);
+  ASSERT_EQ(models.size(), 3u);
   EXPECT_EQ(models[0]->name(), "colour");
   EXPECT_FALSE(models[0]->refine());
-  EXPECT_EQ(models[1]->name(), "colour_contour");
-  EXPECT_TRUE(models[1]->refine());
+  EXPECT_EQ(models[1]->name(), "template");
+  EXPECT_FALSE(models[1]->refine());
+  EXPECT_EQ(models[2]->name(), "colour_contour");
+  EXPECT_TRUE(models[2]->refine());
   auto stereo = tracker.createObservationModel("stereo_pf/StereoMatch", "stereo_cue", p.sub("stereo_cue"));
   EXPECT_FALSE(stereo->refine());
   EXPECT_TRUE(tracker.createObservationModel("stereo_pf/StereoMatch", "s", Parameters())->refine());

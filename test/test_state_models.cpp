@@ -415,6 +415,7 @@ TEST(Engine, RefiningCueComesSecondOnJitteredParticlesWhileTracking)
   contour->initialize("colour_contour", Parameters());
   ASSERT_TRUE(contour->refine());
   EngineConfig config;
+  config.acquire = false;  // the search path: searching from the prior, then tracking
   config.particles = 1000;
   const RefineRun run = runWithContour(contour, true, 40, config);
   int tracked = 0;
@@ -489,6 +490,7 @@ TEST(Engine, RefiningCueWhileSearchingWithTheSearchWeight)
   auto contour = std::make_shared<RecordingContour>();
   contour->initialize("colour_contour", Parameters());
   EngineConfig config;
+  config.acquire = false;  // the search path: searching from the prior, then tracking
   config.particles = 500;
   config.refine_search_weight = 0.5;
   const RefineRun run = runWithContour(contour, true, 2, config);
@@ -503,7 +505,9 @@ TEST(Engine, RejectsBadFramesAndMissingTarget)
 {
   auto colour = std::make_shared<ColourHSI>();
   colour->initialize("colour", Parameters());
-  FilterEngine engine(make<Position3D>(), { colour }, EngineConfig());
+  EngineConfig config;
+  config.acquire = false;  // a flat grey image: there is no box to match (acquisition would refuse it)
+  FilterEngine engine(make<Position3D>(), { colour }, config);
   StereoFrame f;
   f.geometry = kRig;
   f.left = cv::Mat(480, 640, CV_8UC3, cv::Scalar::all(100));

@@ -269,6 +269,7 @@ void runEngine(bool only_while_tracking, std::vector<bool>& tracking_before, std
   p.set("refine", false);  // an ordinary cue here (a refining cue is consulted only while tracking anyway)
   stereo->initialize("stereo", p);
   EngineConfig config;
+  config.acquire = false;  // the search path: the first frame is a search from the prior
   config.particles = 300;
   config.seed = 3;
   FilterEngine engine(state, { colour, stereo }, config);

@@ -921,7 +921,9 @@ TrackSummary trackScene(const std::string& scene_file, int frames, bool all_cues
   scene.frames = std::min(scene.frames, frames);
   SceneRenderer renderer(scene);
   auto state = std::make_shared<Position3D>();
-  state->initialize("state_model", Parameters());
+  Parameters state_params;
+  state_params.set("size_band", 0.0);  // the thesis's cues: each particle's own apparent size, as the thesis
+  state->initialize("state_model", state_params);
   std::vector<std::shared_ptr<ObservationModel>> cues;
   auto colour = std::make_shared<ColourHSI>();
   colour->initialize("colour", Parameters());

@@ -154,6 +154,17 @@ bool FilterEngine::learnTarget(const StereoFrame& frame, const cv::Rect& roi, st
     error = invalid;
     return false;
   }
+  // Acquisition first: a box with no match (or an ambiguous one) changes nothing.
+  BoxMatch match;
+  if (config_.acquire)
+  {
+    match = matchBox(frame, roi);
+    if (!match.ok)
+    {
+      error = match.error;
+      return false;
+    }
+  }
   cache_.reset(frame);
   // All or nothing: a model that cannot learn the region must not leave the others with a new target.
   const std::string before = snapshotTargets();
@@ -169,13 +180,6 @@ bool FilterEngine::learnTarget(const StereoFrame& frame, const cv::Rect& roi, st
   }
   if (!config_.acquire)
     return true;
-  const BoxMatch match = matchBox(frame, roi);
-  if (!match.ok)
-  {
-    error = match.error;
-    restoreTargets(before);
-    return false;
-  }
   acquisition_ = match;
   target_radius_ = match.radius;
   state_model_->setLearnedRadius(match.radius);
@@ -393,13 +397,24 @@ void FilterEngine::prepareProposals(const StereoGeometry& g, int count)
   proposals_.clear();
   if (count <= 0 || config_.proposal_fraction <= 0.0)
     return;
-  cv::Mat map_left, map_right;
+  // Where every model with a map agrees (their product: the colour of a grey object is everywhere, its
+  // template is not).
+  cv::Mat map_left, map_right, one_left, one_right;
   bool have = false;
   for (auto& m : observation_models_)
-    if (m->enabled() && m->targetMap(cache_, View::Left, map_left) && m->targetMap(cache_, View::Right, map_right))
+    if (m->enabled() && m->targetMap(cache_, View::Left, one_left) && m->targetMap(cache_, View::Right, one_right))
     {
+      if (!have)
+      {
+        map_left = one_left.clone();
+        map_right = one_right.clone();
+      }
+      else
+      {
+        cv::multiply(map_left, one_left, map_left, 1.0 / 255.0);
+        cv::multiply(map_right, one_right, map_right, 1.0 / 255.0);
+      }
       have = true;
-      break;
     }
   if (!have)
     return;

@@ -523,7 +523,7 @@ void TrackerNodelet::learnRequestedTarget(const RoiRequest& request, const Stere
     ok = engine.learnTarget(frame, request.roi, error);
   if (ok)
   {
-    engine.reset();  // a new target: search for it afresh
+    engine.reset();  // a new target: start afresh (acquired at its box when engine/acquire, else searched for)
     trail_.clear();
     last_tracked_.reset();
     NODELET_INFO("target learned from %dx%d at (%d, %d) of the left image of the frame stamped %.3f",
