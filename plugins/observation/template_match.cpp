@@ -139,6 +139,24 @@ void TemplateMatch::useTemplate()
     current_ = learned_;
 }
 
+void TemplateMatch::setTarget(const std::vector<float>& learned, double box_radius, double aspect_x, double aspect_y)
+{
+  box_radius_ = box_radius;
+  aspect_x_ = aspect_x;
+  aspect_y_ = aspect_y;
+  learned_ = learned;
+  running_ = learned;  // adaptation starts afresh from the box
+  useTemplate();
+}
+
+const std::vector<float>& TemplateMatch::window(const cv::Mat& gray, double u, double v, double radius)
+{
+  double hx, hy;
+  halfSizes(radius, hx, hy);
+  sample(gray, u, v, hx, hy, scratch_);
+  return scratch_;
+}
+
 bool TemplateMatch::learnTarget(FeatureCache& cache, View view, const cv::Rect& roi, std::string& error)
 {
   cv::Rect inner;
@@ -160,12 +178,7 @@ bool TemplateMatch::learnTarget(FeatureCache& cache, View view, const cv::Rect& 
             "match (draw the box around the object, on its edge with the background)";
     return false;
   }
-  box_radius_ = radius;
-  aspect_x_ = ax;
-  aspect_y_ = ay;
-  learned_ = t;
-  running_ = t;
-  useTemplate();
+  setTarget(t, radius, ax, ay);
   return true;
 }
 
@@ -184,34 +197,17 @@ void TemplateMatch::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Ei
   {
     double c = -1.0;
     if (hyp.valid[i] && std::isfinite(hyp.u[i]) && std::isfinite(hyp.v[i]) && std::isfinite(hyp.radius[i]))
-    {
-      double hx, hy;
-      halfSizes(hyp.radius[i], hx, hy);
-      sample(gray, hyp.u[i], hyp.v[i], hx, hy, scratch_);
-      c = score(scratch_);
-    }
+      c = score(window(gray, hyp.u[i], hyp.v[i], hyp.radius[i]));
     log_likelihood[i] = (c - 1.0) / tunables_.sigma;
     similarity[i] = std::max(0.0, c);
   }
-}
-
-double TemplateMatch::correlation(FeatureCache& cache, View view, double u, double v, double radius)
-{
-  if (current_.empty())
-    return 0.0;
-  double hx, hy;
-  halfSizes(radius, hx, hy);
-  sample(cache.gray(view), u, v, hx, hy, scratch_);
-  return score(scratch_);
 }
 
 void TemplateMatch::adapt(FeatureCache& cache, const ImageHypotheses& estimate)
 {
   if (current_.empty() || tunables_.adapt_rate <= 0.0 || estimate.size() < 1 || !estimate.valid[0])
     return;
-  double hx, hy;
-  halfSizes(estimate.radius[0], hx, hy);
-  sample(cache.gray(estimate.view), estimate.u[0], estimate.v[0], hx, hy, scratch_);
+  window(cache.gray(estimate.view), estimate.u[0], estimate.v[0], estimate.radius[0]);
   if (score(scratch_) < tunables_.adapt_min || !normalise(scratch_))
     return;  // not confidently the object: the template stays
   const double a = tunables_.adapt_rate;
@@ -294,12 +290,7 @@ bool TemplateMatch::loadTarget(const cv::FileNode& node, std::string& error)
     error = name() + ": the template's box_radius, aspect or values are not valid";
     return false;
   }
-  box_radius_ = radius;
-  aspect_x_ = ax;
-  aspect_y_ = ay;
-  learned_ = t;
-  running_ = t;
-  useTemplate();
+  setTarget(t, radius, ax, ay);
   return true;
 }
 

@@ -184,8 +184,6 @@ bool FilterEngine::learnTarget(const StereoFrame& frame, const cv::Rect& roi, st
   target_radius_ = match.radius;
   state_model_->setLearnedRadius(match.radius);
   acquired_.pending = true;
-  acquired_.left = match.left;
-  acquired_.disparity = match.disparity;
   acquired_.radius_px = 0.25 * (roi.width + roi.height);
   return true;
 }
@@ -226,8 +224,8 @@ void FilterEngine::seedAroundAcquisition(const StereoGeometry& geometry)
     ParticleSet& p = sets_[s];
     for (int i = 0; i < p.size(); ++i)
     {
-      const Pixel left{ acquired_.left.u + lateral(rng_), acquired_.left.v + lateral(rng_) };
-      const double d = std::max(0.5 * acquired_.disparity, acquired_.disparity + disparity(rng_));
+      const Pixel left{ acquisition_.left.u + lateral(rng_), acquisition_.left.v + lateral(rng_) };
+      const double d = std::max(0.5 * acquisition_.disparity, acquisition_.disparity + disparity(rng_));
       state_model_->seedFromStereo(geometry, s, p, i, left, Pixel{ left.u - d, left.v });
     }
     p.weights.setConstant(1.0 / p.size());

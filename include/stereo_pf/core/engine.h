@@ -175,7 +175,7 @@ private:
   void initialiseParticles(const StereoGeometry& geometry);
   void respawn(const StereoGeometry& geometry, int set, int count);
   void prepareProposals(const StereoGeometry& geometry, int count);
-  /// Draw every set around the acquired point (acquired_): its left pixel jittered by a fraction of the apparent
+  /// Draw every set around the acquired point (acquisition_): its left pixel jittered by a fraction of the apparent
   /// radius, its disparity by half a pixel, through StateModel::seedFromStereo (rows it rejects keep their
   /// prior draw).
   void seedAroundAcquisition(const StereoGeometry& geometry);
@@ -228,12 +228,10 @@ private:
   int unseen_count_ = 0;
   int state_frames_ = 0;
   ViewingVolume volume_;
-  /// The last acquisition from a box, applied at the next step.
+  /// The last acquisition from a box (its match: acquisition_), applied at the next step.
   struct Acquired
   {
     bool pending = false;
-    Pixel left;               ///< the box centre, left image
-    double disparity = 0.0;   ///< its matched disparity, px
     double radius_px = 0.0;   ///< the box's half-size, px
   };
   Acquired acquired_;

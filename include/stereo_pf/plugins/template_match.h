@@ -53,8 +53,6 @@ public:
   void saveTarget(cv::FileStorage& fs) const override;
   bool loadTarget(const cv::FileNode& node, std::string& error) override;
   void reconfigure() override;
-  /// Correlation of the window at (u, v, radius) of `view` with the template in use (tests, diagnostics).
-  double correlation(FeatureCache& cache, View view, double u, double v, double radius);
 
 protected:
   void onInitialize() override;
@@ -81,6 +79,11 @@ private:
   /// Window half-sizes for an apparent radius (<= 0: the box's).
   void halfSizes(double radius, double& hx, double& hy) const;
   void useTemplate();
+  /// Take `learned` (normalised) as the target learned from a box of `box_radius` px and that aspect; the
+  /// adaptation restarts from it.
+  void setTarget(const std::vector<float>& learned, double box_radius, double aspect_x, double aspect_y);
+  /// The raw samples of the window at (u, v) with apparent `radius` (<= 0: the box's), in scratch_.
+  const std::vector<float>& window(const cv::Mat& gray, double u, double v, double radius);
 
   Tunables tunables_;
   int size_ = 13;
