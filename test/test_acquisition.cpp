@@ -7,7 +7,12 @@
 #include <opencv2/imgproc.hpp>
 
 #include "stereo_pf/core/acquisition.h"
+#include "stereo_pf/core/engine.h"
 #include "stereo_pf/core/scene.h"
+#include "stereo_pf/plugins/colour_contour.h"
+#include "stereo_pf/plugins/colour_hsi.h"
+#include "stereo_pf/plugins/position_3d.h"
+#include "stereo_pf/plugins/template_match.h"
 
 using stereo_pf::BoxMatch;
 using stereo_pf::matchBox;
@@ -193,4 +198,118 @@ int main(int argc, char** argv)
 {
   testing::InitGoogleTest(&argc, argv);
   return RUN_ALL_TESTS();
+}
+
+namespace
+{
+template <class Plugin>
+std::shared_ptr<Plugin> plugin(const std::string& name)
+{
+  auto m = std::make_shared<Plugin>();
+  m->initialize(name, stereo_pf::Parameters());
+  return m;
+}
+}  // namespace
+
+TEST(Tracking, NoDepthBiasFromTheObjectsSize)
+{
+  // The default cues and Position3D on a static 2 cm and 8 cm ball in front of clutter: the learned size, and
+  // the size band, leave depth to disparity (an assumed 3.5 cm made a 4 cm ball ~6 % short, an 8 cm cube ~17 %).
+  using namespace stereo_pf;
+  for (double radius : { 0.02, 0.08 })
+  {
+    SCOPED_TRACE("radius " + std::to_string(radius));
+    const Eigen::Vector3d truth(0.08, -0.04, 1.2);
+    SceneSphere s = ball(radius, truth);
+    s.checkered = true;
+    s.colour2 = cv::Vec3d(240, 240, 240);
+    SceneDescription d = scene({ s }, 2.4, true);
+    d.frames = 30;
+    SceneRenderer renderer(d);
+    FilterEngine engine(plugin<Position3D>("state_model"),
+                        { plugin<ColourHSI>("colour"), plugin<TemplateMatch>("template"),
+                          plugin<ColourContour>("colour_contour") },
+                        EngineConfig());
+    cv::Mat l, r;
+    auto frame = [&](int k) {
+      renderer.render(k, l, r);
+      StereoFrame f;
+      f.left = l;
+      f.right = r;
+      f.geometry = renderer.geometry();
+      f.stamp = renderer.stamp(k);
+      return f;
+    };
+    std::string error;
+    ASSERT_TRUE(engine.learnTarget(frame(0), renderer.targetRoi(0), error)) << error;
+    EXPECT_NEAR(engine.targetRadius(), radius, 0.03 * radius);
+    double depth_sum = 0.0;
+    int n = 0;
+    for (int k = 0; k < d.frames; ++k)
+    {
+      const FrameResult res = engine.step(frame(k));
+      ASSERT_EQ(res.state, TrackState::Tracking) << "frame " << k;
+      if (k >= 10)
+      {
+        depth_sum += res.estimate.position.z();
+        ++n;
+      }
+    }
+    EXPECT_LT(std::abs(depth_sum / n - truth.z()) / truth.z(), 0.01) << "mean depth " << depth_sum / n;
+  }
+}
+
+TEST(TemplateMatch, PeaksAtTheObjectInBothViewsAndSurvivesSaveAndLoad)
+{
+  using namespace stereo_pf;
+  const Eigen::Vector3d truth(-0.1, 0.05, 1.1);
+  cv::Mat l, r;
+  cv::Rect box;
+  const StereoFrame f = render(scene({ ball(0.04, truth, cv::Vec3d(200, 200, 200)) }, 2.2, true), l, r, box);
+  FeatureCache cache;
+  cache.reset(f);
+  auto m = plugin<TemplateMatch>("template");
+  std::string error;
+  ASSERT_TRUE(m->learnTarget(cache, View::Left, box, error)) << error;
+  const float radius = static_cast<float>(f.geometry.apparentRadius(0.04, truth.z()));
+  // At the object in each view, and 1, 2 and 3 radii beside it on the same row.
+  auto score = [&](const TemplateMatch& model, View view, Eigen::VectorXd& ll) {
+    const Pixel at = view == View::Left ? f.geometry.projectLeft(truth) : f.geometry.projectRight(truth);
+    ImageHypotheses h;
+    h.view = view;
+    h.resize(4);
+    for (int i = 0; i < 4; ++i)
+    {
+      h.u[i] = static_cast<float>(at.u) + i * radius;
+      h.v[i] = static_cast<float>(at.v);
+      h.radius[i] = radius;
+      h.valid[i] = 1;
+    }
+    Eigen::VectorXd sim(4);
+    ll.resize(4);
+    const_cast<TemplateMatch&>(model).evaluate(cache, h, ll, sim);
+    return sim;
+  };
+  for (View view : { View::Left, View::Right })
+  {
+    Eigen::VectorXd ll;
+    const Eigen::VectorXd sim = score(*m, view, ll);
+    EXPECT_GT(sim[0], 0.8) << "view " << static_cast<int>(view);
+    for (int i = 1; i < 4; ++i)
+    {
+      EXPECT_GT(sim[0] - sim[i], 0.3) << "view " << static_cast<int>(view) << ", " << i << " radii aside";
+      EXPECT_GT(ll[0], ll[i]);
+    }
+  }
+  // The saved template evaluates as the learned one.
+  cv::FileStorage out(".yml", cv::FileStorage::WRITE | cv::FileStorage::MEMORY);
+  m->saveTarget(out);
+  const std::string text = out.releaseAndGetString();
+  cv::FileStorage in(text, cv::FileStorage::READ | cv::FileStorage::MEMORY);
+  auto loaded = plugin<TemplateMatch>("template");
+  ASSERT_TRUE(loaded->loadTarget(in[loaded->name()], error)) << error;  // as FilterEngine::loadTarget passes it
+  Eigen::VectorXd ll_learned, ll_loaded;
+  score(*m, View::Left, ll_learned);
+  score(*loaded, View::Left, ll_loaded);
+  EXPECT_LT((ll_learned - ll_loaded).cwiseAbs().maxCoeff(), 1e-9);
 }

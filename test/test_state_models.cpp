@@ -155,6 +155,7 @@ TEST(Velocity3D, ConstantVelocityMovesTheCloud)
 {
   Parameters p;
   p.set("noise", 0.0);
+  p.set("jitter_radii", 0.0);
   p.set("acceleration_noise", 0.0);
   auto m = make<Velocity3D>(p);
   ParticleSet s;

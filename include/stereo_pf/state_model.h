@@ -55,6 +55,14 @@ public:
   {
     return false;
   }
+  /// Optional: particle `row`, just placed by seedFromStereo where the cues see the target, is taken to have
+  /// come there from the previous estimate `from` in `dt` seconds (a jump the dynamics could not follow: a
+  /// bounce, a throw's first frames, a lock taken back from a distractor). Models with a velocity set it to
+  /// that jump so the next prediction follows it. Default: nothing.
+  virtual void setArrival(const StateEstimate& /*from*/, double /*dt*/, int /*set*/, ParticleSet& /*particles*/,
+                          int /*row*/) const
+  {
+  }
   /// Dynamics: move every particle of `particles` by dt seconds (dt > 0; first frame uses the nominal period).
   virtual void predict(int set, double dt, ParticleSet& particles, Rng& rng) const = 0;
   /// Where each particle of `particles` would appear in `hyp.view` (hyp is resized to N).

@@ -11,11 +11,13 @@ namespace stereo_pf
 void Velocity3D::onInitialize()
 {
   readCommonParameters();
-  // Velocity carries the motion, so the position jitter defaults much smaller than Position3D's walk.
-  noise_ = params().getDouble("noise", 0.005, 0.0, 10.0);
+  // Velocity carries the motion, so the position jitter is much smaller than Position3D's walk: by default
+  // (noise 0) jitter_radii of the object's radius per frame, so that it follows the object's scale.
+  noise_ = params().getDouble("noise", 0.0, 0.0, 10.0);
+  jitter_radii_ = params().getDouble("jitter_radii", 0.25, 0.0, 10.0);
   acceleration_noise_ = params().getDouble("acceleration_noise", 12.0, 0.0, 1000.0);
   initial_speed_ = params().getDouble("initial_speed", 0.3, 0.0, 100.0);
-  max_speed_ = params().getDouble("max_speed", 10.0, 0.01, 1000.0);
+  max_speed_ = params().getDouble("max_speed", 40.0, 0.01, 1000.0);
 }
 
 void Velocity3D::samplePrior(const StereoGeometry& geometry, int set, ParticleSet& particles, int begin, int end,
@@ -28,10 +30,18 @@ void Velocity3D::samplePrior(const StereoGeometry& geometry, int set, ParticleSe
       particles.states(i, k) = speed(rng);
 }
 
+void Velocity3D::setArrival(const StateEstimate& from, double dt, int, ParticleSet& particles, int row) const
+{
+  if (!from.valid || !(dt > 0.0))
+    return;
+  for (int k = 0; k < 3; ++k)
+    particles.states(row, 3 + k) = std::clamp((particles.states(row, k) - from.position[k]) / dt, -max_speed_, max_speed_);
+}
+
 void Velocity3D::predict(int, double dt, ParticleSet& particles, Rng& rng) const
 {
   std::normal_distribution<double> accel(0.0, acceleration_noise_ * dt);
-  std::normal_distribution<double> jitter(0.0, noise_);
+  std::normal_distribution<double> jitter(0.0, noise_ > 0.0 ? noise_ : jitter_radii_ * radius());
   for (int k = 0; k < 3; ++k)
   {
     double* x = particles.states.col(k).data();

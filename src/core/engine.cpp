@@ -75,6 +75,7 @@ EngineConfig EngineConfig::fromParameters(const Parameters& p)
   c.respawn_fraction = p.getDouble("respawn_fraction", c.respawn_fraction, 0.0, 1.0);
   c.tracking_respawn_fraction = p.getDouble("tracking_respawn_fraction", c.tracking_respawn_fraction, 0.0, 1.0);
   c.proposal_fraction = p.getDouble("proposal_fraction", c.proposal_fraction, 0.0, 1.0);
+  c.jump_weight = p.getDouble("jump_weight", c.jump_weight, 0.0, 1.0);
   c.proposal_min_depth = p.getDouble("proposal_min_depth", c.proposal_min_depth, 1e-3, 1e6);
   c.refine_jitter = p.getDouble("refine_jitter", c.refine_jitter, 0.0, 10.0);
   c.refine_search_weight = p.getDouble("refine_search_weight", c.refine_search_weight, 0.0, 1.0);
@@ -359,11 +360,14 @@ void FilterEngine::initialiseParticles(const StereoGeometry& geometry)
   initialised_ = true;
 }
 
-void FilterEngine::respawn(const StereoGeometry& geometry, int set, int count)
+void FilterEngine::respawn(const StereoGeometry& geometry, int set, int count, double proposal_share,
+                           const StateEstimate* arrival, double dt)
 {
   ParticleSet& p = sets_[set];
   const int n = p.size();
-  count = std::min(count, n);
+  const int proposed = std::min({ static_cast<int>(proposals_.size()), n,
+                                  static_cast<int>(std::lround(proposal_share * count)) });
+  count = std::min(arrival ? proposed : count, n);
   if (count <= 0)
     return;
   // Draw the fresh particles into the first `count` rows, after moving `count` randomly chosen rows there
@@ -381,16 +385,15 @@ void FilterEngine::respawn(const StereoGeometry& geometry, int set, int count)
   state_model_->samplePrior(geometry, set, p, 0, count, rng_);
   // Part of the fresh particles go where the target's appearance is (both sets use the same pairs, so
   // the stereo-constraints sets get consistent left/right halves).
-  const int proposed = std::min(static_cast<int>(proposals_.size()),
-                                static_cast<int>(std::lround(config_.proposal_fraction * count)));
   for (int i = 0; i < proposed; ++i)
-    state_model_->seedFromStereo(geometry, set, p, i, proposals_[i].first, proposals_[i].second);
-  // A fresh particle starts with the average prior weight.
-  p.weights.head(count).setConstant(1.0 / n);
+    if (state_model_->seedFromStereo(geometry, set, p, i, proposals_[i].first, proposals_[i].second) && arrival)
+      state_model_->setArrival(*arrival, dt, set, p, i);
+  // A fresh particle starts with the average prior weight; one that jumped while tracking with a share of it.
+  p.weights.head(count).setConstant((arrival ? config_.jump_weight : 1.0) / n);
   p.weights /= p.weights.sum();
 }
 
-void FilterEngine::prepareProposals(const StereoGeometry& g, int count)
+void FilterEngine::prepareProposals(const StereoGeometry& g, int count, const StateEstimate* near)
 {
   proposals_.clear();
   if (count <= 0 || config_.proposal_fraction <= 0.0)
@@ -436,7 +439,16 @@ void FilterEngine::prepareProposals(const StereoGeometry& g, int count)
   }
   if (total <= 0.0)
     return;
-  const double max_disparity = g.disparity(config_.proposal_min_depth);
+  // The partner lies on the same row, at a positive disparity up to that of the nearest depth; while tracking
+  // (`near`), within a factor kDisparityReach of the estimate's: the maps see the target at about its present
+  // size, which a far smaller or larger disparity would contradict (a tiny far hypothesis matches anything).
+  double min_disparity = 1.0, max_disparity = g.disparity(config_.proposal_min_depth);
+  if (near && near->valid)
+  {
+    const double d = near->left.u - near->right.u;
+    min_disparity = std::max(min_disparity, d / kDisparityReach);
+    max_disparity = std::min(max_disparity, d * kDisparityReach);
+  }
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   row_cdf_.resize(cols);
   for (int k = 0; k < count; ++k)
@@ -446,9 +458,8 @@ void FilterEngine::prepareProposals(const StereoGeometry& g, int count)
     const int cx = static_cast<int>(std::min(cell, proposal_cdf_.size() - 1) % cols);
     const int cy = static_cast<int>(std::min(cell, proposal_cdf_.size() - 1) / cols);
     const Pixel left{ (cx + unit(rng_)) * kCell - 0.5, (cy + unit(rng_)) * kCell - 0.5 };
-    // The partner lies on the same row, at a positive disparity up to that of the nearest depth.
     const int first = std::max(0, static_cast<int>(std::floor((left.u - max_disparity) / kCell)));
-    const int last = std::min(cols - 1, static_cast<int>(std::floor((left.u - 1.0) / kCell)));
+    const int last = std::min(cols - 1, static_cast<int>(std::floor((left.u - min_disparity) / kCell)));
     if (last < first)
       continue;
     const uint8_t* row = small_right_.ptr<uint8_t>(cy);
@@ -686,14 +697,17 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     initialiseParticles(geometry);
   else
   {
-    const double fraction =
-        state_ == TrackState::Tracking ? config_.tracking_respawn_fraction : config_.respawn_fraction;
+    // While tracking, the redrawn particles all go where the cues see the target (recovery search), arriving
+    // from the last estimate; otherwise a share of them does and the rest come from the prior.
+    const bool tracking = state_ == TrackState::Tracking && last_estimate_.valid;
+    const double fraction = tracking ? config_.tracking_respawn_fraction : config_.respawn_fraction;
+    const double share = tracking ? 1.0 : config_.proposal_fraction;
     const int respawn_count = static_cast<int>(std::lround(fraction * config_.particles));
-    prepareProposals(geometry, static_cast<int>(std::lround(config_.proposal_fraction * respawn_count)));
+    prepareProposals(geometry, static_cast<int>(std::lround(share * respawn_count)), tracking ? &last_estimate_ : nullptr);
     for (int s = 0; s < static_cast<int>(sets_.size()); ++s)
     {
       state_model_->predict(s, dt, sets_[s], rng_);
-      respawn(geometry, s, respawn_count);
+      respawn(geometry, s, respawn_count, share, tracking ? &last_estimate_ : nullptr, dt);
     }
   }
 
@@ -789,6 +803,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
   updateTrackState(support, result);
   if (support == Support::Seen && state_ == TrackState::Tracking)
     adaptTargets();
+  last_estimate_ = state_ == TrackState::Tracking ? result.estimate : StateEstimate{};
 
   weighted_sets_ = sets_;  // a copy into the same buffers every frame: the weights resampling erases
   for (ParticleSet& p : sets_)

@@ -57,7 +57,14 @@ struct EngineConfig
   int found_frames = 2;               ///< consecutive seen frames to switch to Tracking
   int lost_frames = 3;                ///< consecutive unseen frames to switch to Lost
   double respawn_fraction = 0.2;      ///< fraction of each set redrawn every frame while not Tracking
-  double tracking_respawn_fraction = 0.0;  ///< the same while Tracking (lets the filter leave a distractor)
+  /// While Tracking: the share of each set moved every frame to where the cues' target maps see the target
+  /// (the recovery search: a fast object's jump, a bounce, the real object beside a distractor), each with the
+  /// velocity of a jump from the previous estimate (StateModel::setArrival). None from the prior.
+  double tracking_respawn_fraction = 0.05;
+  /// Prior weight of such a recovery particle relative to a predicted one: the chance that the object jumped
+  /// rather than moved as the dynamics say. Small: a look-alike elsewhere takes the track only when it explains
+  /// the images much better, or consistently over frames.
+  double jump_weight = 0.05;
   /// Share of the redrawn particles proposed from the observation models' target maps (a left pixel drawn
   /// where the target's appearance is, a right pixel along the same row), the rest from the prior.
   double proposal_fraction = 0.5;
@@ -173,8 +180,14 @@ public:
 private:
   void applyPending();
   void initialiseParticles(const StereoGeometry& geometry);
-  void respawn(const StereoGeometry& geometry, int set, int count);
-  void prepareProposals(const StereoGeometry& geometry, int count);
+  /// Redraw `count` random rows of set `set`: a `proposal_share` of them at the prepared proposals, the rest
+  /// from the prior; while tracking (`arrival` given) only proposals, each arriving from *arrival in dt.
+  void respawn(const StereoGeometry& geometry, int set, int count, double proposal_share,
+               const StateEstimate* arrival, double dt);
+  /// Draw `count` stereo pairs where the cues' target maps agree; `near`: while tracking, the estimate whose
+  /// disparity bounds the pairs' (within a factor kDisparityReach).
+  void prepareProposals(const StereoGeometry& geometry, int count, const StateEstimate* near);
+  static constexpr double kDisparityReach = 1.5;
   /// Draw every set around the acquired point (acquisition_): its left pixel jittered by a fraction of the apparent
   /// radius, its disparity by half a pixel, through StateModel::seedFromStereo (rows it rejects keep their
   /// prior draw).
@@ -223,6 +236,7 @@ private:
   std::vector<std::vector<ImageHypotheses>> hypotheses_;
   bool initialised_ = false;
   double last_stamp_ = 0.0;
+  StateEstimate last_estimate_;  ///< the previous frame's estimate while Tracking (invalid otherwise)
   TrackState state_ = TrackState::Searching;
   int seen_count_ = 0;
   int unseen_count_ = 0;
