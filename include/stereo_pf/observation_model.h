@@ -27,6 +27,8 @@ public:
 
   /// Learn the target appearance from `roi` of `view` in the frame held by `cache`.
   /// Returns false (with `error` set) when the region is unusable (empty, outside the image, ...).
+  /// The engine passes View::Left and the user's box, once the box was matched in the right image; the cue is then
+  /// evaluated in both views. If any cue fails, the others' targets are restored (saveTarget/loadTarget).
   virtual bool learnTarget(FeatureCache& cache, View view, const cv::Rect& roi, std::string& error) = 0;
   /// True once a target has been learned or loaded.
   virtual bool hasTarget() const = 0;
@@ -35,6 +37,11 @@ public:
   /// (any constant offset is irrelevant) and a similarity in [0, 1] into `similarity[i]` (1 = looks
   /// exactly like the target; used for the track state). Invalid hypotheses must get a finite low
   /// log-likelihood and similarity 0. Both outputs have hyp.size() entries.
+  /// hyp.radius <= 0 (or not finite) marks a 2D hypothesis without a size (the stereo-constraints model): use a
+  /// fixed window of the cue's own. Called several times per frame (per set and view, per stage, and on samples
+  /// beside the best particle): keep no state between calls. The best particle's mean similarity over the
+  /// evidence cues, against the background's, decides the track state (EngineConfig::found_similarity,
+  /// lost_similarity, background_margin).
   virtual void evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
                         Eigen::Ref<Eigen::VectorXd> similarity) = 0;
 
@@ -62,14 +69,15 @@ public:
   virtual bool targetMap(FeatureCache& /*cache*/, View /*view*/, cv::Mat& /*map*/) { return false; }
 
   /// Optional: follow the object's appearance. The engine calls this after each frame in which the tracked
-  /// object was seen (Support::Seen while tracking), with one hypothesis per view at the estimate (`estimate`
-  /// holds one entry; called once per view). A model that adapts must stay anchored to what it learned from the
-  /// box. Default: nothing.
+  /// object was seen (Support::Seen while tracking), once per particle set and view, with `estimate` holding one
+  /// hypothesis: that set's best-weighted particle. A model that adapts must stay anchored to what it learned from
+  /// the box. Default: nothing.
   virtual void adapt(FeatureCache& /*cache*/, const ImageHypotheses& /*estimate*/) {}
 
   /// Write the learned target under this plugin's name into an open cv::FileStorage.
   virtual void saveTarget(cv::FileStorage& fs) const = 0;
-  /// Read the target written by saveTarget; false with `error` set when absent or inconsistent.
+  /// Read the target written by saveTarget (`node` is the map it wrote under name()); false with `error` set when
+  /// absent or inconsistent. Also restores targets after a failed learn or load: saving then loading must round-trip.
   virtual bool loadTarget(const cv::FileNode& node, std::string& error) = 0;
 
   /// Re-read tunables after the parameters changed (dynamic reconfigure). Called between frames.
@@ -92,7 +100,8 @@ public:
 
 protected:
   ObservationModel() = default;
-  /// Read the plugin's own parameters from params(); throw ParameterError on bad values.
+  /// Read the plugin's own parameters from params(); throw ParameterError on bad values. Keep it cheap and free
+  /// of side effects: no frame or target exists yet, and instances are also built only to validate parameters.
   virtual void onInitialize() = 0;
   /// The plugin's parameter namespace.
   const Parameters& params() const { return params_; }

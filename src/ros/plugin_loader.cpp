@@ -22,7 +22,11 @@ std::shared_ptr<Base> create(pluginlib::ClassLoader<Base>& loader, const std::st
   const std::vector<std::string> declared = loader.getDeclaredClasses();
   if (std::find(declared.begin(), declared.end(), type) == declared.end())
     throw PluginError(kind + " '" + name + "': unknown type '" + type + "'; declared " + kind + " types: " +
-                      join(declared));
+                      join(declared) +
+                      ". A plugin of another package is declared only when that package's package.xml depends on "
+                      "stereo_pf and exports its plugin XML (<export><stereo_pf plugin=\"${prefix}/<file>.xml\"/>"
+                      "</export>) naming the class, and the package is on ROS_PACKAGE_PATH (source its workspace's "
+                      "setup.bash; a package that uses it lists it as a run dependency). See docs/writing_a_cue.md");
   try
   {
     return std::shared_ptr<Base>(loader.createUnmanagedInstance(type));
