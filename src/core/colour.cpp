@@ -48,9 +48,16 @@ Hsi rgbToHsi(double r, double g, double b)
 int HsiBinning::bin(const Hsi& hsi) const
 {
   const bool achromatic = hsi.s < achromatic_saturation || hsi.i < achromatic_intensity;
-  // Achromatic colours share hue bin 0; saturation and intensity still separate white, grey and black.
+  if (achromatic && grey_levels > intensity_bins)
+  {
+    // Grey levels: the (hue, saturation 0, intensity) bins taken in order, finer in intensity than colours are.
+    const int level = sliceOf(hsi.i, std::clamp(grey_levels, 1, hue_bins * intensity_bins));
+    return ((level / intensity_bins) * saturation_bins) * intensity_bins + level % intensity_bins;
+  }
+  // Achromatic colours share hue bin 0; saturation and intensity still separate white, grey and black. With
+  // grey levels, saturation bin 0 holds them: a colour just above the achromatic threshold goes to bin 1.
   const int hb = achromatic ? 0 : sliceOf(hsi.h / 360.0, hue_bins);
-  const int sb = sliceOf(hsi.s, saturation_bins);
+  const int sb = std::max(grey_levels > intensity_bins && saturation_bins > 1 ? 1 : 0, sliceOf(hsi.s, saturation_bins));
   const int ib = sliceOf(hsi.i, intensity_bins);
   return (hb * saturation_bins + sb) * intensity_bins + ib;
 }
@@ -67,13 +74,15 @@ void HsiBinning::validate() const
   if (!(achromatic_saturation >= 0.0 && achromatic_saturation <= 1.0) ||
       !(achromatic_intensity >= 0.0 && achromatic_intensity <= 1.0))
     throw std::invalid_argument("HSI binning " + describe() + ": achromatic thresholds must lie in [0, 1]");
+  if (grey_levels < 1 || grey_levels > hue_bins * intensity_bins)
+    throw std::invalid_argument("HSI binning " + describe() + ": grey_levels must lie in [1, hue_bins x intensity_bins]");
 }
 
 std::string HsiBinning::describe() const
 {
   char buf[128];
-  std::snprintf(buf, sizeof(buf), "%dx%dx%d/s%.6f/i%.6f", hue_bins, saturation_bins, intensity_bins,
-                achromatic_saturation, achromatic_intensity);
+  std::snprintf(buf, sizeof(buf), "%dx%dx%d/s%.6f/i%.6f/g%d", hue_bins, saturation_bins, intensity_bins,
+                achromatic_saturation, achromatic_intensity, grey_levels);
   return buf;
 }
 
@@ -85,6 +94,7 @@ HsiBinning HsiBinning::fromParameters(const Parameters& p)
   b.intensity_bins = p.getInt("intensity_bins", 4, 1, 64);
   b.achromatic_saturation = p.getDouble("achromatic_saturation", 0.1, 0.0, 1.0);
   b.achromatic_intensity = p.getDouble("achromatic_intensity", 0.08, 0.0, 1.0);
+  b.grey_levels = p.getInt("grey_levels", b.intensity_bins, 1, b.hue_bins * b.intensity_bins);
   if (b.bins() > kMaxBins)
   {
     const std::string ns = p.prefix().empty() ? "" : p.prefix() + "/";
@@ -100,6 +110,7 @@ void HsiBinning::write(cv::FileStorage& fs) const
 {
   fs << "hue_bins" << hue_bins << "saturation_bins" << saturation_bins << "intensity_bins" << intensity_bins;
   fs << "achromatic_saturation" << achromatic_saturation << "achromatic_intensity" << achromatic_intensity;
+  fs << "grey_levels" << grey_levels;
 }
 
 bool HsiBinning::read(const cv::FileNode& m, HsiBinning& b, std::string& error)
@@ -116,6 +127,7 @@ bool HsiBinning::read(const cv::FileNode& m, HsiBinning& b, std::string& error)
   b.intensity_bins = static_cast<int>(m["intensity_bins"]);
   b.achromatic_saturation = static_cast<double>(m["achromatic_saturation"]);
   b.achromatic_intensity = static_cast<double>(m["achromatic_intensity"]);
+  b.grey_levels = m["grey_levels"].isInt() ? static_cast<int>(m["grey_levels"]) : b.intensity_bins;
   return true;
 }
 
@@ -143,7 +155,7 @@ bool HsiBinning::sameAs(const HsiBinning& other) const
   return hue_bins == other.hue_bins && saturation_bins == other.saturation_bins &&
          intensity_bins == other.intensity_bins &&
          std::abs(achromatic_saturation - other.achromatic_saturation) <= 1e-9 &&
-         std::abs(achromatic_intensity - other.achromatic_intensity) <= 1e-9;
+         std::abs(achromatic_intensity - other.achromatic_intensity) <= 1e-9 && grey_levels == other.grey_levels;
 }
 
 HsiBinner::HsiBinner(const HsiBinning& binning)

@@ -76,6 +76,7 @@ EngineConfig EngineConfig::fromParameters(const Parameters& p)
   c.tracking_respawn_fraction = p.getDouble("tracking_respawn_fraction", c.tracking_respawn_fraction, 0.0, 1.0);
   c.proposal_fraction = p.getDouble("proposal_fraction", c.proposal_fraction, 0.0, 1.0);
   c.jump_weight = p.getDouble("jump_weight", c.jump_weight, 0.0, 1.0);
+  c.local_fraction = p.getDouble("local_fraction", c.local_fraction, 0.0, 1.0);
   c.proposal_min_depth = p.getDouble("proposal_min_depth", c.proposal_min_depth, 1e-3, 1e6);
   c.refine_jitter = p.getDouble("refine_jitter", c.refine_jitter, 0.0, 10.0);
   c.refine_search_weight = p.getDouble("refine_search_weight", c.refine_search_weight, 0.0, 1.0);
@@ -390,12 +391,17 @@ void FilterEngine::respawn(const StereoGeometry& geometry, int set, int count, d
       state_model_->setArrival(*arrival, dt, set, p, i);
   // A fresh particle starts with the average prior weight; one that jumped while tracking with a share of it.
   p.weights.head(count).setConstant((arrival ? config_.jump_weight : 1.0) / n);
+  // The local search's pairs (the last local_proposals_ of the proposals) are where the object's own image
+  // motion leads: they count as much as a predicted particle.
+  for (int i = std::max(0, proposed - local_proposals_); i < proposed; ++i)
+    p.weights[i] = 1.0 / n;
   p.weights /= p.weights.sum();
 }
 
 void FilterEngine::prepareProposals(const StereoGeometry& g, int count, const StateEstimate* near)
 {
   proposals_.clear();
+  local_proposals_ = 0;
   if (count <= 0 || config_.proposal_fraction <= 0.0)
     return;
   // Where every model with a map agrees (their product: the colour of a grey object is everywhere, its
@@ -479,6 +485,92 @@ void FilterEngine::prepareProposals(const StereoGeometry& g, int count, const St
     const Pixel right{ (rx + unit(rng_)) * kCell - 0.5, left.v };
     if (left.u - right.u > 0.0)
       proposals_.emplace_back(left, right);
+  }
+}
+
+int FilterEngine::proposeLocally(const StereoGeometry& geometry, int count)
+{
+  if (count <= 0 || track_known_ < 1 || !(track_disparity_[0] > 0.0))
+    return 0;
+  ImageTrack track;
+  track.left = track_left_[0];
+  track.disparity = track_disparity_[0];
+  track.radius = track_radius_;
+  if (track_known_ >= 2)
+  {
+    track.du = track_left_[0].u - track_left_[1].u;
+    track.dv = track_left_[0].v - track_left_[1].v;
+    track.dd = track_disparity_[0] - track_disparity_[1];
+  }
+  // The evidence cues while tracking (not the refining ones, which need a region to refine, nor those comparing
+  // the two views): the sum of their log-likelihoods, their mean similarity.
+  const bool others = std::any_of(observation_models_.begin(), observation_models_.end(),
+                                  [](const std::shared_ptr<ObservationModel>& m) { return m->enabled() && !m->refine(); });
+  auto score = [&](const ImageHypotheses& hyp, Eigen::VectorXd& ll, Eigen::VectorXd& sim) {
+    int cues = 0;
+    for (auto& m : observation_models_)
+    {
+      if (!m->enabled() || m->comparesViews() || (others && m->refine()))
+        continue;
+      scratch_ll_.resize(hyp.size());
+      scratch_sim_.resize(hyp.size());
+      m->evaluate(cache_, hyp, scratch_ll_, scratch_sim_);
+      ll += m->weight() * scratch_ll_;
+      sim += scratch_sim_;
+      ++cues;
+    }
+    if (cues > 0)
+      sim /= cues;
+  };
+  local_proposals_ = 0;
+  const LocalMatch match = local_search_.search(track, geometry.width(), geometry.height(), score);
+  // A match the evidence would call unseen proposes nothing (an object growing or turning beyond what its
+  // template knows still scores above that while it is in view).
+  if (!match.found || match.similarity < config_.lost_similarity)
+    return 0;
+  // Spread over what the search could tell apart: a fraction of its grid spacing, half a pixel of disparity.
+  std::normal_distribution<double> lateral(0.0, std::max(0.25, 0.5 * match.step));
+  std::normal_distribution<double> disparity(0.0, 0.5);
+  const double d = match.left.u - match.right.u;
+  for (int i = 0; i < count; ++i)
+  {
+    const Pixel left{ match.left.u + lateral(rng_), match.left.v + lateral(rng_) };
+    const double di = std::max(0.5 * d, d + disparity(rng_));
+    proposals_.emplace_back(left, Pixel{ left.u - di, left.v });
+  }
+  local_proposals_ = count;
+  return count;
+}
+
+void FilterEngine::rememberTrack()
+{
+  const StateEstimate& e = last_estimate_;
+  const double d = e.left.u - e.right.u;
+  if (!e.valid || !(d > 0.0) || sets_.empty())
+  {
+    track_known_ = 0;
+    return;
+  }
+  track_left_[1] = track_left_[0];
+  track_disparity_[1] = track_disparity_[0];
+  track_left_[0] = e.left;
+  track_disparity_[0] = d;
+  track_known_ = std::min(track_known_ + 1, 2);
+  // The apparent size: the median over the first set's left hypotheses (what the cues were given).
+  for (const ImageHypotheses& hyp : hypotheses_.front())
+  {
+    if (hyp.view != View::Left)
+      continue;
+    std::vector<float>& r = radius_scratch_;
+    r.clear();
+    for (int i = 0; i < hyp.size(); ++i)
+      if (hyp.valid[i] && hyp.radius[i] > 0.0f)
+        r.push_back(hyp.radius[i]);
+    if (!r.empty())
+    {
+      std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
+      track_radius_ = r[r.size() / 2];
+    }
   }
 }
 
@@ -702,8 +794,11 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     const bool tracking = state_ == TrackState::Tracking && last_estimate_.valid;
     const double fraction = tracking ? config_.tracking_respawn_fraction : config_.respawn_fraction;
     const double share = tracking ? 1.0 : config_.proposal_fraction;
-    const int respawn_count = static_cast<int>(std::lround(fraction * config_.particles));
+    int respawn_count = static_cast<int>(std::lround(fraction * config_.particles));
     prepareProposals(geometry, static_cast<int>(std::lround(share * respawn_count)), tracking ? &last_estimate_ : nullptr);
+    if (tracking)
+      respawn_count = static_cast<int>(proposals_.size()) +
+                      proposeLocally(geometry, static_cast<int>(std::lround(config_.local_fraction * config_.particles)));
     for (int s = 0; s < static_cast<int>(sets_.size()); ++s)
     {
       state_model_->predict(s, dt, sets_[s], rng_);
@@ -804,6 +899,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
   if (support == Support::Seen && state_ == TrackState::Tracking)
     adaptTargets();
   last_estimate_ = state_ == TrackState::Tracking ? result.estimate : StateEstimate{};
+  rememberTrack();
 
   weighted_sets_ = sets_;  // a copy into the same buffers every frame: the weights resampling erases
   for (ParticleSet& p : sets_)

@@ -42,6 +42,12 @@ struct HsiBinning
   double achromatic_saturation = 0.1;
   /// Pixels darker than this (intensity) are also treated as achromatic (hue of near-black is noise).
   double achromatic_intensity = 0.08;
+  /// More than intensity_bins: achromatic pixels are told apart by intensity alone, in this many equal slices
+  /// of [0, 1], laid over the bins no chromatic pixel then uses (saturation bin 0 of every hue); at most
+  /// hue_bins x intensity_bins. A grey image has nothing else: 4 intensity bins put a faint grey ball and the
+  /// dark wall behind it in one bin. Up to intensity_bins: the binning above (saturation and intensity bins).
+  /// Target files from before it was stored read as intensity_bins.
+  int grey_levels = 4;
 
   /// Largest number of bins: bin images are CV_8UC1.
   static constexpr int kMaxBins = 256;
@@ -53,16 +59,17 @@ struct HsiBinning
   /// Throws std::invalid_argument when a bin count is < 1, bins() > kMaxBins, or a threshold is
   /// outside [0, 1].
   void validate() const;
-  /// Compact text naming every setting, e.g. "8x8x4/s0.100000/i0.080000" (cache keys, messages).
+  /// Compact text naming every setting, e.g. "8x8x4/s0.100000/i0.080000/g4" (cache keys, messages).
   std::string describe() const;
   /// True when both binnings produce the same bin for every colour.
   bool sameAs(const HsiBinning& other) const;
 
   /// Read hue_bins (8, 1..64), saturation_bins (8, 1..64), intensity_bins (4, 1..64), achromatic_saturation
-  /// (0.1, 0..1) and achromatic_intensity (0.08, 0..1) from `params`; throws ParameterError naming the
-  /// parameter, or all three bin counts when their product exceeds kMaxBins.
+  /// (0.1, 0..1), achromatic_intensity (0.08, 0..1) and grey_levels (intensity_bins, 1..hue_bins x intensity_bins) from
+  /// `params`; throws ParameterError naming the parameter, or all three bin counts when their product exceeds
+  /// kMaxBins.
   static HsiBinning fromParameters(const Parameters& params);
-  /// Write the five settings into the open map of `fs` (target files).
+  /// Write the six settings into the open map of `fs` (target files).
   void write(cv::FileStorage& fs) const;
   /// Read them back from a map written by write(); false with `error` naming the missing key.
   static bool read(const cv::FileNode& node, HsiBinning& binning, std::string& error);

@@ -12,6 +12,7 @@
 #include "stereo_pf/core/acquisition.h"
 #include "stereo_pf/core/estimators.h"
 #include "stereo_pf/core/feature_cache.h"
+#include "stereo_pf/core/local_search.h"
 #include "stereo_pf/core/parameters.h"
 #include "stereo_pf/core/random.h"
 #include "stereo_pf/core/stereo_frame.h"
@@ -65,6 +66,11 @@ struct EngineConfig
   /// rather than moved as the dynamics say. Small: a look-alike elsewhere takes the track only when it explains
   /// the images much better, or consistently over frames.
   double jump_weight = 0.05;
+  /// While Tracking: the share of each set moved every frame around where the local search (LocalSearch) finds
+  /// the object near the position its last image motion predicts, at its present apparent size (what lets a
+  /// fast or approaching object be followed), with the same prior weight and arrival velocity as the recovery
+  /// search's. 0: no local search (the default until it holds on the stress corpus: see docs/stress.md).
+  double local_fraction = 0.0;
   /// Share of the redrawn particles proposed from the observation models' target maps (a left pixel drawn
   /// where the target's appearance is, a right pixel along the same row), the rest from the prior.
   double proposal_fraction = 0.5;
@@ -188,6 +194,11 @@ private:
   /// disparity bounds the pairs' (within a factor kDisparityReach).
   void prepareProposals(const StereoGeometry& geometry, int count, const StateEstimate* near);
   static constexpr double kDisparityReach = 1.5;
+  /// While tracking: run the local search near the last estimates' image track and append `count` pairs around
+  /// its match to the proposals (none when it finds nothing the evidence cues call seen); returns how many.
+  int proposeLocally(const StereoGeometry& geometry, int count);
+  /// After a step: keep the tracking estimate's image position, disparity and apparent size for proposeLocally().
+  void rememberTrack();
   /// Draw every set around the acquired point (acquisition_): its left pixel jittered by a fraction of the apparent
   /// radius, its disparity by half a pixel, through StateModel::seedFromStereo (rows it rejects keep their
   /// prior draw).
@@ -237,6 +248,14 @@ private:
   bool initialised_ = false;
   double last_stamp_ = 0.0;
   StateEstimate last_estimate_;  ///< the previous frame's estimate while Tracking (invalid otherwise)
+  /// The last two tracking estimates' left pixels and disparities (newest first) and how many are known: the
+  /// local search's image motion.
+  Pixel track_left_[2];
+  double track_disparity_[2] = { 0.0, 0.0 };
+  int track_known_ = 0;
+  double track_radius_ = 0.0;  ///< the tracked hypotheses' median apparent radius in the left image, px
+  LocalSearch local_search_;
+  int local_proposals_ = 0;  ///< how many of proposals_ (the last ones) the local search made this frame
   TrackState state_ = TrackState::Searching;
   int seen_count_ = 0;
   int unseen_count_ = 0;
@@ -262,6 +281,7 @@ private:
   ImageHypotheses background_hyp_, adapt_hyp_;
   Eigen::VectorXd background_ll_, background_sim_, background_sum_;
   std::vector<double> background_values_;
+  std::vector<float> radius_scratch_;
   std::vector<int> resample_indices_;
   Eigen::MatrixXd resample_scratch_;
 };

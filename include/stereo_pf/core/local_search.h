@@ -1,0 +1,60 @@
+// The local search (a proposal policy of the engine while tracking): where, near the image position the
+// object's last motion predicts, the evidence cues see it best at its present apparent size; first in the left
+// image on a grid scaled to the object, then along the same row of the right image over the disparities its
+// depth motion allows. A fast object (a ball thrown at the camera gains pixels of disparity every frame) is
+// found where a random walk would take many frames to get to; the particles it proposes carry the velocity of
+// that jump. ROS-free.
+#pragma once
+
+#include <functional>
+
+#include <Eigen/Core>
+
+#include "stereo_pf/core/hypotheses.h"
+#include "stereo_pf/core/stereo_geometry.h"
+
+namespace stereo_pf
+{
+/// Where the object was, and how it moved in the images in the frame before (zero when not known).
+struct ImageTrack
+{
+  Pixel left;                 ///< centre in the left image, px
+  double disparity = 0.0;     ///< left u - right u, px
+  double radius = 0.0;        ///< apparent radius in the left image, px
+  double du = 0.0, dv = 0.0;  ///< left image motion per frame, px
+  double dd = 0.0;            ///< disparity change per frame, px
+};
+
+/// What the local search found.
+struct LocalMatch
+{
+  bool found = false;
+  Pixel left, right;        ///< the best pair (same row)
+  double radius = 0.0;      ///< apparent radius there, px
+  double similarity = 0.0;  ///< mean cue similarity of the pair, the smaller of the two views
+  double step = 0.0;        ///< the final grid spacing in the left image, px (how well the place is known)
+};
+
+/// Scores hypotheses of one view: the sum of the evidence cues' log-likelihoods and their mean similarity.
+using HypothesisScorer =
+    std::function<void(const ImageHypotheses& hyp, Eigen::VectorXd& log_likelihood, Eigen::VectorXd& similarity)>;
+
+class LocalSearch
+{
+public:
+  /// Search near `track` in images of `width` x `height` px, scoring with `score`.
+  LocalMatch search(const ImageTrack& track, int width, int height, const HypothesisScorer& score);
+
+  /// Grid points per axis of the coarse left search, at most (the window grows with the motion, the spacing
+  /// with it so the cost stays bounded).
+  static constexpr int kMaxGrid = 15;
+
+private:
+  /// Score `hyp_` and return the index of the best valid hypothesis (-1: none).
+  int best(const HypothesisScorer& score);
+
+  ImageHypotheses hyp_;
+  Eigen::VectorXd ll_, sim_;
+};
+
+}  // namespace stereo_pf

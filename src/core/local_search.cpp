@@ -1,0 +1,113 @@
+#include "stereo_pf/core/local_search.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace stereo_pf
+{
+int LocalSearch::best(const HypothesisScorer& score)
+{
+  const int n = hyp_.size();
+  if (n == 0)
+    return -1;
+  ll_.setZero(n);
+  sim_.setZero(n);
+  score(hyp_, ll_, sim_);
+  int best = -1;
+  for (int i = 0; i < n; ++i)
+    if (hyp_.valid[i] && std::isfinite(ll_[i]) && (best < 0 || ll_[i] > ll_[best]))
+      best = i;
+  return best;
+}
+
+LocalMatch LocalSearch::search(const ImageTrack& track, int width, int height, const HypothesisScorer& score)
+{
+  LocalMatch m;
+  if (!(track.disparity > 0.0) || !std::isfinite(track.left.u) || !std::isfinite(track.left.v) || width < 2 ||
+      height < 2)
+    return m;
+  auto inside = [&](double u, double v) { return u >= 0.0 && v >= 0.0 && u <= width - 1.0 && v <= height - 1.0; };
+  const double r0 = std::max(track.radius, 1.5);
+  // Where the last frame's motion takes it; the apparent size follows the disparity (both go as 1 / depth).
+  const double pu = track.left.u + track.du, pv = track.left.v + track.dv;
+  double pd = track.disparity + track.dd;
+  if (!(pd > 0.5))
+    pd = track.disparity;
+  const double rp = r0 * std::clamp(pd / track.disparity, 0.67, 1.5);
+
+  // Left image: a window of two radii plus the last motion (a bounce reverses it) around the prediction, on a
+  // grid of at most kMaxGrid points per axis; then a finer grid around its best point.
+  const double motion = std::hypot(track.du, track.dv);
+  const double half = 2.0 * rp + motion + 2.0;
+  const double step = std::max(1.0, 2.0 * half / (kMaxGrid - 1));
+  const int k = std::min((kMaxGrid - 1) / 2, static_cast<int>(std::ceil(half / step)));
+  hyp_.view = View::Left;
+  hyp_.resize(0);
+  auto add = [&](double u, double v, double r) {
+    hyp_.u.push_back(static_cast<float>(u));
+    hyp_.v.push_back(static_cast<float>(v));
+    hyp_.radius.push_back(static_cast<float>(r));
+    hyp_.valid.push_back(inside(u, v) ? 1 : 0);
+  };
+  for (int y = -k; y <= k; ++y)
+    for (int x = -k; x <= k; ++x)
+      add(pu + x * step, pv + y * step, rp);
+  int b = best(score);
+  if (b < 0)
+    return m;
+  double lu = hyp_.u[b], lv = hyp_.v[b];
+  const double fine = step / 3.0;
+  if (fine >= 0.25)
+  {
+    hyp_.resize(0);
+    for (int y = -3; y <= 3; ++y)
+      for (int x = -3; x <= 3; ++x)
+        add(lu + x * fine, lv + y * fine, rp);
+    b = best(score);
+    if (b < 0)
+      return m;
+    lu = hyp_.u[b];
+    lv = hyp_.v[b];
+  }
+  const double left_similarity = sim_[b];
+
+  // Right image, the same row: the disparities the depth motion allows (twice the last change, as a bounce
+  // reverses it, and a tenth of the disparity for a motion not seen yet), in steps of half a pixel or finer
+  // than 32 candidates.
+  const double reach = 2.0 + 2.0 * std::fabs(track.dd) + 0.1 * pd;
+  const double d_step = std::max(0.5, 2.0 * reach / 32.0);
+  const int kd = static_cast<int>(std::ceil(reach / d_step));
+  hyp_.view = View::Right;
+  hyp_.resize(0);
+  std::vector<double> disparities;
+  for (int j = -kd; j <= kd; ++j)
+  {
+    const double d = pd + j * d_step;
+    if (!(d > 0.5))
+      continue;
+    disparities.push_back(d);
+    add(lu - d, lv, rp * d / pd);
+  }
+  b = best(score);
+  if (b < 0)
+    return m;
+  double d = disparities[b];
+  const int n = static_cast<int>(disparities.size());
+  if (b > 0 && b < n - 1 && std::isfinite(ll_[b - 1]) && std::isfinite(ll_[b + 1]))
+  {
+    // Sub-step: the vertex of the parabola through the best log-likelihood and its neighbours.
+    const double a = ll_[b - 1], c = ll_[b + 1], curvature = a - 2.0 * ll_[b] + c;
+    if (curvature < 0.0)
+      d += d_step * std::clamp(0.5 * (a - c) / curvature, -0.5, 0.5);
+  }
+  m.found = true;
+  m.left = Pixel{ lu, lv };
+  m.right = Pixel{ lu - d, lv };
+  m.radius = rp * d / pd;
+  m.similarity = std::min(left_similarity, sim_[b]);
+  m.step = fine >= 0.25 ? fine : step;
+  return m;
+}
+
+}  // namespace stereo_pf
