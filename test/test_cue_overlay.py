@@ -219,7 +219,7 @@ def main():
                       (s_b["rms_cm"], s_b["converged_at"], s["rms_cm"], s["converged_at"]))
     # Every installed header of ours compiles on its own with only what find_package(catkin COMPONENTS stereo_pf)
     # exports: none includes a header that is not installed, none needs an include directory that is not exported.
-    # (The message and reconfigure headers genmsg and dynamic_reconfigure generate are theirs to keep so.)
+    # (The message headers genmsg generates are its to keep so.)
     headers = sorted(h for h in (os.path.relpath(p, os.path.join(prefix, "include"))
                                  for p in glob.glob(os.path.join(inc, "**", "*.h"), recursive=True))
                      if os.path.isfile(os.path.join(source, "include", h)))

@@ -12,14 +12,12 @@
 namespace stereo_pf
 {
 FramePipeline::FramePipeline(const std::string& name, const NodeletOptions& options, EngineHost& host,
-                             TrackerStatus& status, TargetRequests& requests, ReconfigureBridge& reconfigure,
-                             FrameInput& input)
+                             TrackerStatus& status, TargetRequests& requests, FrameInput& input)
   : name_(name)
   , options_(options)
   , host_(host)
   , status_(status)
   , requests_(requests)
-  , reconfigure_(reconfigure)
   , input_(input)
   , stereo_input_(options.input)
   , source_input_(options.input)
@@ -150,7 +148,6 @@ void FramePipeline::applyPending(const StereoFrame& frame)
     trail_.clear();
     last_tracked_.reset();
   }
-  reconfigure_.apply();
   if (roi)
     learnRequestedTarget(*roi, frame);
 }

@@ -98,6 +98,9 @@ struct EngineConfig
 
   /// Read from `params` (missing keys keep their defaults); throws ParameterError.
   static EngineConfig fromParameters(const Parameters& params);
+  /// The engine's parameter table (engine.cpp declares each parameter there once): name, default (these
+  /// members' initial values), range, description, and whether it can be changed while running.
+  static const std::vector<ParameterSpec>& table();
 };
 
 /// Result of one frame.
