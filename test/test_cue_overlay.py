@@ -1,4 +1,6 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: BSD-3-Clause
+# Copyright (c) 2026, stereo_pf developers
 """The extension path a user takes: examples/my_cues, a catkin package of its own with one ObservationModel, built
 as an overlay and loaded by track_bag through pluginlib.
 

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The ROS-free parameter tree and its range checks.
 #include <gtest/gtest.h>
 

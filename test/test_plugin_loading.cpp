@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Every plugin loads through pluginlib by its lookup name; configuration errors are explained.
 #include <gtest/gtest.h>
 

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // rostest for the tracker nodelet / node: plays a make_scene bag into it frame by frame (lockstep: the next
 // frame is published once ~status answered the previous one, so the test is independent of machine speed)
 // and checks accuracy against the ground truth, the services, lazy debug images, robustness to bad frames

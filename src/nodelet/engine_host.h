@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The engine the nodelet runs, its plugins and the parameter tree they read, and the lock that keeps other threads
 // out of it mid-step. Built once at start-up from the private namespace.
 #pragma once

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The frame thread: takes the newest stereo set from the slot, turns it into a rectified StereoFrame, applies what
 // was queued for it (a target request, a trail to clear), runs the engine's step() (which applies what was queued
 // for the engine: reconfigured values, a reset) and

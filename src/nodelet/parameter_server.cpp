@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // dynamic_reconfigure's protocol, served from a parameter table.
 #include "parameter_server.h"
 

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // A dynamic_reconfigure server for any component, driven by its parameter table (ParameterSpec rows) instead of a
 // generated .cfg type: the same protocol (~<ns>/set_parameters, latched parameter_descriptions and
 // parameter_updates), so `dynparam` and dynamic_reconfigure's clients work with it, and a third party's cue is

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // dynamic_reconfigure -> the engine: one server per component (~engine, ~state_model, ~<cue>), in the namespace of
 // the parameters it changes, serving the component's parameter table: the engine's reconfigurable rows
 // (EngineConfig::table()), and for a plugin every parameter its reconfigure() reads again (learned from the plugin

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The tracker nodelet: set-up and teardown of its pieces (see the header).
 #include "tracker_nodelet.h"
 

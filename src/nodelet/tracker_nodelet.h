@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The tracker nodelet: camera1394stereo-style stereo topics in, 3D estimate, track status, particles, markers,
 // debug images, TF and diagnostics out. See docs/ros_runtime.md for topics, parameters and services. Private: the
 // class is reached through pluginlib (stereo_pf/TrackerNodelet) only, and this header is not installed.

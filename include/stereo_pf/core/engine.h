@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The particle-filter engine: owns the particle sets and the RNG, runs one stereo frame through
 // predict -> project -> observe -> couple -> normalise -> estimate -> resample.
 #pragma once

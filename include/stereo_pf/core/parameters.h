@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // ROS-free parameter tree: a flat map of "ns/key" -> text, filled from YAML (CLI) or the ROS parameter
 // server (nodelet). Typed getters validate ranges and throw ParameterError naming the parameter.
 #pragma once
