@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Google Benchmark suite: what each stage of one stereo frame costs, and what whole frames cost, as the
 // particle count grows. Frames are rendered in process from the shipped pendulum scenes (640x480), and
 // particles sit around the true target as a tracking filter's do (not spread over the whole frustum).

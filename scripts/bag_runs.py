@@ -1,3 +1,5 @@
+# SPDX-License-Identifier: BSD-3-Clause
+# Copyright (c) 2026, stereo_pf developers
 """What scripts/experiments.py and scripts/stress share: running the tools two at a time, each pinned to its own
 core, reading track_bag's summary line and CSV, and reading ground truth from a bag with rosbag."""
 import heapq

@@ -1,4 +1,6 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: BSD-3-Clause
+# Copyright (c) 2026, stereo_pf developers
 """Issue 5's experiments: thesis chapter 7 on our synthetic scenes, with OpenCV baselines.
 
 Runs track_bag over scenes x filters x particle counts x seeds (two runs at a time, each pinned to its own

@@ -1,3 +1,5 @@
+# SPDX-License-Identifier: BSD-3-Clause
+# Copyright (c) 2026, stereo_pf developers
 """Real stereo footage of pitched baseballs (BYU ECEn 631's baseball catcher) as stereo_pf bags.
 
 The library behind scripts/real_pitch (see its --help and README.md, "Real footage"). It reads a local copy of

@@ -1,4 +1,6 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: BSD-3-Clause
+# Copyright (c) 2026, stereo_pf developers
 """Feed the tracker nodelet every kind of bad input, one at a time, and print what it did as a markdown table.
 
 Starts tracker.launch (manager + TrackerNodelet, config/tracker.yaml) on a master of its own, teaches it the

@@ -1,4 +1,6 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: BSD-3-Clause
+# Copyright (c) 2026, stereo_pf developers
 """Measure the ROS tracker at 30 Hz: latency to ~target, CPU of the nodelet manager, memory over time.
 
 Starts `roslaunch stereo_pf demo.launch rviz:=false` on its own master port (scene_publisher renders the

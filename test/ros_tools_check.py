@@ -1,4 +1,6 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: BSD-3-Clause
+# Copyright (c) 2026, stereo_pf developers
 """The ROS command-line tools docs/ros_runtime.md uses work on a running tracker (ctest ros_tools).
 
 On a fresh machine this fails when scripts/deps.txt misses a package a tool needs at run time (each of

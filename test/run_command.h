@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // For the tests that drive the command-line tools: run a shell command and capture what it prints.
 #pragma once
 

@@ -1,4 +1,6 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: BSD-3-Clause
+# Copyright (c) 2026, stereo_pf developers
 """Soak test of the tracker nodelet: good frames at 30 Hz with bad input mixed in, for a fixed duration.
 
 Starts tracker.launch (nodelet manager + TrackerNodelet, config/tracker.yaml) on a master of its own and plays

@@ -1,3 +1,5 @@
+# SPDX-License-Identifier: BSD-3-Clause
+# Copyright (c) 2026, stereo_pf developers
 """Drive the tracker from Python: a make_scene bag's frames re-stamped and published live, bad variants of a
 frame, the tracker launched on a master of its own, its diagnostics and its memory.
 

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Tests of acquisition from a box (matchBox): depth and size from the box's match in the right image, on
 // rendered scenes of several sizes, ranges, textures and encodings, and the errors for unusable boxes.
 #include <gtest/gtest.h>

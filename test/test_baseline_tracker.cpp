@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Tests of the OpenCV baselines (StereoBaselineTracker) on short synthetic sequences rendered in code:
 // the right box found by template matching, 3D accuracy of csrt, kcf and camshift, and clear errors.
 #include <gtest/gtest.h>

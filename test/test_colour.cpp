@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // HSI conversion and binning, histograms and the Bhattacharyya coefficient, and the ColourHSI plugin
 // constructed directly on synthetic images.
 #include <gtest/gtest.h>

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The ColourContour plugin constructed directly on rendered images: its mismatch must be smallest at the true
 // outline, to a fraction of a pixel in position and radius, follow the sphere's perspective ellipse, and handle
 // bad input, parameters and target files.

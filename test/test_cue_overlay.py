@@ -1,4 +1,6 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: BSD-3-Clause
+# Copyright (c) 2026, stereo_pf developers
 """The extension path a user takes: examples/my_cues, a catkin package of its own with one ObservationModel, built
 as an overlay and loaded by track_bag through pluginlib.
 
@@ -219,7 +221,7 @@ def main():
                       (s_b["rms_cm"], s_b["converged_at"], s["rms_cm"], s["converged_at"]))
     # Every installed header of ours compiles on its own with only what find_package(catkin COMPONENTS stereo_pf)
     # exports: none includes a header that is not installed, none needs an include directory that is not exported.
-    # (The message and reconfigure headers genmsg and dynamic_reconfigure generate are theirs to keep so.)
+    # (The message headers genmsg generates are its to keep so.)
     headers = sorted(h for h in (os.path.relpath(p, os.path.join(prefix, "include"))
                                  for p in glob.glob(os.path.join(inc, "**", "*.h"), recursive=True))
                      if os.path.isfile(os.path.join(source, "include", h)))

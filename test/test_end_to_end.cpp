@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // End to end through the command-line tools: make_scene writes a bag, track_bag tracks it, and the
 // summary line is checked against the accuracy bounds of issues 2 and 3 (fewer seeds and frames than the
 // 10-seed acceptance runs reported in docs/).

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The engine on a robot's bad days (issue 12): the state stays inside what the cameras can see, a target the
 // background explains as well is never "tracking", a set that leaves the viewing volume is lost and redrawn,
 // and learning or loading a target changes all the cues' targets or none.

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The per-frame feature cache computes each product once per image per frame.
 #include <gtest/gtest.h>
 

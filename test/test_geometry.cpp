@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Stereo geometry: projection, triangulation, validity (thesis eq. 6.1-6.3).
 #include <gtest/gtest.h>
 

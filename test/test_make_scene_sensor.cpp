@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // make_scene's sensor options through the command-line tools: every sensor.encoding is published with the
 // right layout, reads back (through the conversion track_bag and the nodelet use) to what the bgr8 bag
 // holds, and track_bag tracks it; sensor.camera_info: size_only publishes the size alone, and track_bag

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The ROS-free parameter tree and its range checks.
 #include <gtest/gtest.h>
 
@@ -115,6 +117,33 @@ TEST(EngineConfig, ReadsAndValidates)
   p.set("engine/lost_similarity", 0.9);
   EXPECT_NE(errorOf([&] { stereo_pf::EngineConfig::fromParameters(p.sub("engine")); }).find("lost_similarity"),
             std::string::npos);
+}
+
+// Each engine parameter is declared once, in EngineConfig::table(): fromParameters reads exactly its rows (with
+// their ranges and defaults, as the getters declare them), and the particle count has one range.
+TEST(EngineConfig, TheTableIsWhatFromParametersReads)
+{
+  Parameters p;
+  stereo_pf::EngineConfig::fromParameters(p.sub("engine"));
+  const std::vector<stereo_pf::ParameterSpec> read = p.sub("engine").declared();
+  const std::vector<stereo_pf::ParameterSpec>& table = stereo_pf::EngineConfig::table();
+  ASSERT_EQ(read.size(), table.size());
+  for (size_t i = 0; i < table.size(); ++i)
+  {
+    EXPECT_EQ(read[i].name, table[i].name);
+    EXPECT_EQ(read[i].type, table[i].type) << table[i].name;
+    EXPECT_EQ(read[i].default_value, table[i].default_value) << table[i].name;
+    EXPECT_EQ(read[i].min, table[i].min) << table[i].name;
+    EXPECT_EQ(read[i].max, table[i].max) << table[i].name;
+    EXPECT_FALSE(table[i].description.empty()) << table[i].name;
+  }
+  EXPECT_EQ(table.front().name, "particles");
+  EXPECT_EQ(table.front().min, 1.0);
+  EXPECT_EQ(table.front().max, 1000000.0);
+  EXPECT_TRUE(table.front().reconfigurable);
+  // check() says what the getter would.
+  EXPECT_EQ(p.sub("engine").check(table.front(), "1000000"), "");
+  EXPECT_NE(p.sub("engine").check(table.front(), "0").find("engine/particles"), std::string::npos);
 }
 
 int main(int argc, char** argv)

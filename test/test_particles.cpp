@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Particle sets, systematic resampling statistics, estimators, evaluation summary.
 #include <gtest/gtest.h>
 

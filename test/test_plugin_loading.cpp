@@ -1,7 +1,15 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Every plugin loads through pluginlib by its lookup name; configuration errors are explained.
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <map>
+#include <regex>
+#include <set>
 
 #include "stereo_pf/ros/plugin_loader.h"
 #include "stereo_pf/ros/yaml_parameters.h"
@@ -186,4 +194,139 @@ int main(int argc, char** argv)
 {
   testing::InitGoogleTest(&argc, argv);
   return RUN_ALL_TESTS();
+}
+
+// config/tracker.yaml is the template that documents every parameter: checked here against the parameter tables
+// (the engine's EngineConfig::table(), each shipped plugin's as its getters declare it), so the two cannot disagree:
+// every parameter is documented in its section with its default, a documented key exists, and "(*)" marks exactly
+// the parameters a reconfigure server offers (the cues' common enabled/weight/refine are documented once for all).
+namespace
+{
+struct Documented
+{
+  std::string value;
+  bool starred = false;
+};
+/// section ("engine", "colour", "state_model/StereoConstraints", ...) -> key -> what the template says.
+std::map<std::string, std::map<std::string, Documented>> readTemplate(const std::string& path)
+{
+  std::ifstream in(path);
+  std::map<std::string, std::map<std::string, Documented>> out;
+  std::string section, line;
+  const std::regex top(R"(^(?:#\s*)?(\w+):\s*$)");
+  const std::regex sub(R"(^\s+#\s*--\s*(.*):\s*$)");
+  const std::regex entry(R"(^\s+(?:#\s*)?(\w+):\s*(\S+)\s*(#.*)?$)");
+  std::string base;
+  std::smatch m;
+  while (std::getline(in, line))
+  {
+    if (std::regex_match(line, m, top))
+      section = base = m[1];
+    else if (base == "state_model" && std::regex_match(line, m, sub))
+      section = "state_model/" + std::string(m[1]);
+    else if (!section.empty() && std::regex_match(line, m, entry) && m[1] != "type")
+      out[section][m[1]] = { m[2], m[3].str().find("(*)") != std::string::npos };
+  }
+  return out;
+}
+
+bool sameValue(const std::string& documented, const std::string& declared)
+{
+  char* end = nullptr;
+  const double a = std::strtod(documented.c_str(), &end);
+  if (end != documented.c_str() && *end == '\0')
+  {
+    const double b = std::strtod(declared.c_str(), nullptr);
+    return std::fabs(a - b) <= 1e-6 * std::max(1.0, std::fabs(b));
+  }
+  return documented == declared;
+}
+}  // namespace
+
+TEST(ParameterTables, TheYamlTemplateDocumentsEveryParameterWithItsDefault)
+{
+  const auto doc = readTemplate(std::string(CONFIG_DIR) + "/tracker.yaml");
+  ASSERT_TRUE(doc.count("engine"));
+  const auto& engine = doc.at("engine");
+  for (const ParameterSpec& spec : EngineConfig::table())
+  {
+    ASSERT_TRUE(engine.count(spec.name)) << "engine/" << spec.name << " is not in config/tracker.yaml";
+    EXPECT_TRUE(sameValue(engine.at(spec.name).value, spec.default_value))
+        << "engine/" << spec.name << ": the template says " << engine.at(spec.name).value << ", the table "
+        << spec.default_value;
+    EXPECT_EQ(engine.at(spec.name).starred, spec.reconfigurable) << "engine/" << spec.name << ": (*) mark";
+  }
+  EXPECT_EQ(engine.size(), EngineConfig::table().size()) << "the template documents an engine key the table lacks";
+
+  Tracker tracker{ Parameters() };
+  const std::set<std::string> common = { "enabled", "weight", "refine" };
+  // (type, section) pairs; a state model's keys may be documented in a shared section (`own` false: no default check).
+  struct Case
+  {
+    std::string type, name, section;
+    bool state, own;
+  };
+  const std::vector<Case> cases = {
+    { "stereo_pf/ColourHSI", "colour", "colour", false, true },
+    { "stereo_pf/TemplateMatch", "template", "template", false, true },
+    { "stereo_pf/ColourContour", "colour_contour", "colour_contour", false, true },
+    { "stereo_pf/StereoMatch", "stereo", "stereo", false, true },
+    { "stereo_pf/TextureEdge", "texture", "texture", false, true },
+    { "stereo_pf/ShapeCircle", "shape", "shape", false, true },
+    { "stereo_pf/Position3D", "state_model", "state_model/Position3D and Velocity3D", true, true },
+    { "stereo_pf/StereoConstraints", "state_model", "state_model/StereoConstraints", true, true },
+  };
+  for (const Case& c : cases)
+  {
+    SCOPED_TRACE(c.type);
+    ASSERT_TRUE(doc.count(c.section)) << c.section;
+    const auto& section = doc.at(c.section);
+    const std::vector<ParameterSpec> table = tracker.pluginTable(c.type, c.name, Parameters());
+    std::set<std::string> declared;
+    for (const ParameterSpec& spec : table)
+    {
+      declared.insert(spec.name);
+      if (!section.count(spec.name))
+      {
+        EXPECT_TRUE(common.count(spec.name)) << c.section << "/" << spec.name << " is not in config/tracker.yaml";
+        continue;
+      }
+      EXPECT_TRUE(sameValue(section.at(spec.name).value, spec.default_value))
+          << c.section << "/" << spec.name << ": the template says " << section.at(spec.name).value
+          << ", the plugin " << spec.default_value;
+      if (!common.count(spec.name))
+      {
+        EXPECT_EQ(section.at(spec.name).starred, spec.reconfigurable) << c.section << "/" << spec.name << ": (*) mark";
+      }
+    }
+    if (c.type == "stereo_pf/Position3D")
+      continue;  // its section is shared with Velocity3D: checked below
+    for (const auto& [key, d] : section)
+    {
+      EXPECT_TRUE(declared.count(key)) << c.section << "/" << key << " is documented but " << c.type
+                                       << " reads no such key";
+    }
+  }
+  // Velocity3D: its own keys in "Velocity3D only", the rest shared with Position3D.
+  const std::vector<ParameterSpec> velocity = tracker.pluginTable("stereo_pf/Velocity3D", "state_model", Parameters());
+  const std::vector<ParameterSpec> position = tracker.pluginTable("stereo_pf/Position3D", "state_model", Parameters());
+  const auto& shared = doc.at("state_model/Position3D and Velocity3D");
+  const auto& only = doc.at("state_model/Velocity3D only");
+  std::set<std::string> both;
+  for (const auto* t : { &velocity, &position })
+    for (const ParameterSpec& spec : *t)
+      both.insert(spec.name);
+  for (const ParameterSpec& spec : velocity)
+  {
+    if (only.count(spec.name))
+    {
+      EXPECT_TRUE(sameValue(only.at(spec.name).value, spec.default_value)) << "Velocity3D/" << spec.name;
+      EXPECT_EQ(only.at(spec.name).starred, spec.reconfigurable) << "Velocity3D/" << spec.name << ": (*) mark";
+    }
+    else
+      EXPECT_TRUE(shared.count(spec.name)) << "Velocity3D/" << spec.name << " is not in config/tracker.yaml";
+  }
+  for (const auto* section : { &shared, &only })
+    for (const auto& [key, d] : *section)
+      EXPECT_TRUE(both.count(key)) << "state_model/" << key << " is documented but no 3D state model reads it";
 }

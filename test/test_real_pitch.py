@@ -1,4 +1,6 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: BSD-3-Clause
+# Copyright (c) 2026, stereo_pf developers
 """scripts/real_pitch without the footage: its reference pipeline on a ball drawn with OpenCV, its bags read
 back, evaluate() on a hand-made CSV, and its messages for paths that are not one of the two repositories."""
 import csv

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Unit tests (no roscore) of the nodelet's building blocks: frame validation and rectification
 // (StereoInput), the parameter-server conversion (mergeXmlRpc) and the output messages.
 #include <cmath>

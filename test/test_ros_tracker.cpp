@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // rostest for the tracker nodelet / node: plays a make_scene bag into it frame by frame (lockstep: the next
 // frame is published once ~status answered the previous one, so the test is independent of machine speed)
 // and checks accuracy against the ground truth, the services, lazy debug images, robustness to bad frames
@@ -22,7 +24,7 @@
 #include <vector>
 
 #include <diagnostic_msgs/DiagnosticArray.h>
-#include <dynamic_reconfigure/client.h>
+#include <dynamic_reconfigure/Reconfigure.h>
 #include <geometry_msgs/PointStamped.h>
 #include <gtest/gtest.h>
 #include <nodelet/NodeletList.h>
@@ -40,8 +42,6 @@
 #include "stereo_pf/SetTarget.h"
 #include "stereo_pf/TargetFile.h"
 #include "stereo_pf/TrackStatus.h"
-#include "stereo_pf/TrackerEngineConfig.h"
-#include "stereo_pf/TrackerObservationConfig.h"
 
 namespace
 {
@@ -393,6 +393,57 @@ double percentile(std::vector<double> v, double q)
   return v[std::min(v.size() - 1, static_cast<size_t>(q * (v.size() - 1) + 0.5))];
 }
 
+/// The values of a dynamic_reconfigure server (its parameters are its component's table: no generated type).
+struct ReconfigureValues
+{
+  std::map<std::string, double> numbers;  ///< ints and doubles
+  std::map<std::string, std::string> strs;
+  std::map<std::string, bool> bools;
+};
+
+/// dynamic_reconfigure's set_parameters on the server at `ns`: sends `values` and replaces them with the values the
+/// server answers with (those in force). Empty `values`: only asks for them.
+bool reconfigure(const std::string& ns, ReconfigureValues& values, double timeout = 5.0)
+{
+  const std::string service = ns + "/set_parameters";
+  if (!ros::service::waitForService(service, ros::Duration(timeout)))
+    return false;
+  dynamic_reconfigure::Reconfigure srv;
+  for (const auto& [name, value] : values.numbers)
+  {
+    dynamic_reconfigure::DoubleParameter p;
+    p.name = name;
+    p.value = value;
+    srv.request.config.doubles.push_back(p);
+  }
+  for (const auto& [name, value] : values.strs)
+  {
+    dynamic_reconfigure::StrParameter p;
+    p.name = name;
+    p.value = value;
+    srv.request.config.strs.push_back(p);
+  }
+  for (const auto& [name, value] : values.bools)
+  {
+    dynamic_reconfigure::BoolParameter p;
+    p.name = name;
+    p.value = value;
+    srv.request.config.bools.push_back(p);
+  }
+  if (!ros::service::call(service, srv))
+    return false;
+  values = ReconfigureValues();
+  for (const auto& p : srv.response.config.ints)
+    values.numbers[p.name] = p.value;
+  for (const auto& p : srv.response.config.doubles)
+    values.numbers[p.name] = p.value;
+  for (const auto& p : srv.response.config.strs)
+    values.strs[p.name] = p.value;
+  for (const auto& p : srv.response.config.bools)
+    values.bools[p.name] = p.value;
+  return true;
+}
+
 }  // namespace
 
 TEST(Tracker, TracksTheBagWithinToleranceOfGroundTruth)
@@ -574,14 +625,17 @@ TEST(Tracker, ReconfigureParticlesAndRejectAnOutOfRangeSigma)
                                                                      ++clouds;
                                                                      cv.notify_all();
                                                                    });
-  dynamic_reconfigure::Client<stereo_pf::TrackerEngineConfig> engine(h.tracker() + "/engine");
-  stereo_pf::TrackerEngineConfig config;
-  ASSERT_TRUE(engine.getCurrentConfiguration(config, ros::Duration(5.0)));
-  const stereo_pf::TrackerEngineConfig original = config;
-  config.particles = 50;
-  config.resample_threshold = 0.0;  // never resample: every particle stays a distinct point
-  ASSERT_TRUE(engine.setConfiguration(config));
-  EXPECT_EQ(config.particles, 50) << "the server answered with other values";
+  // Connected before the frames go out (the tracker publishes the cloud only while it has subscribers).
+  for (int tries = 0; tries < 100 && sub.getNumPublishers() == 0; ++tries)
+    ros::WallDuration(0.05).sleep();
+  const std::string engine = h.tracker() + "/engine";
+  ReconfigureValues config;
+  ASSERT_TRUE(reconfigure(engine, config));
+  const ReconfigureValues original = config;
+  config.numbers["particles"] = 50;
+  config.numbers["resample_threshold"] = 0.0;  // never resample: every particle stays a distinct point
+  ASSERT_TRUE(reconfigure(engine, config));
+  EXPECT_EQ(config.numbers["particles"], 50) << "the server answered with other values";
   stereo_pf::TrackStatus status;
   for (size_t k = 0; k < 20; ++k)
     ASSERT_TRUE(h.stepStatus(h.frames()[k], status));  // a new particle count restarts the search
@@ -592,42 +646,44 @@ TEST(Tracker, ReconfigureParticlesAndRejectAnOutOfRangeSigma)
     EXPECT_GT(cloud_points, 10u);
   }
 
-  // ColourHSI accepts sigma up to 10; the reconfigure range allows 50: rejected whole, and the server is
-  // answered with the value in force (-1: the configured one), so a later valid change is not refused with it.
-  dynamic_reconfigure::Client<stereo_pf::TrackerObservationConfig> colour(h.tracker() + "/colour");
-  stereo_pf::TrackerObservationConfig cue;
-  ASSERT_TRUE(colour.getCurrentConfiguration(cue, ros::Duration(5.0)));
-  cue.sigma = 40.0;
-  cue.weight = 0.9;
-  ASSERT_TRUE(colour.setConfiguration(cue));
-  EXPECT_DOUBLE_EQ(cue.sigma, -1.0) << "the rejected sigma stayed in the server";
-  EXPECT_DOUBLE_EQ(cue.weight, 1.0) << "part of a rejected change was applied";
+  // ColourHSI accepts sigma up to 10: 40 is rejected whole (with the valid weight sent beside it), and the server is
+  // answered with the values in force, so a later valid change is not refused with it.
+  const std::string colour = h.tracker() + "/colour";
+  ReconfigureValues cue;
+  ASSERT_TRUE(reconfigure(colour, cue));
+  ASSERT_EQ(cue.numbers.count("sigma"), 1u) << "ColourHSI's sigma is not served";
+  const double sigma = cue.numbers["sigma"];
+  cue.numbers["sigma"] = 40.0;
+  cue.numbers["weight"] = 0.9;
+  ASSERT_TRUE(reconfigure(colour, cue));
+  EXPECT_DOUBLE_EQ(cue.numbers["sigma"], sigma) << "the rejected sigma stayed in the server";
+  EXPECT_DOUBLE_EQ(cue.numbers["weight"], 1.0) << "part of a rejected change was applied";
   for (size_t k = 20; k < 30; ++k)
     ASSERT_TRUE(h.stepStatus(h.frames()[k], status)) << "no status after a rejected reconfigure";
   EXPECT_EQ(h.counter("dropped: processing error", h.published()), 0u);
-  cue.weight = 0.9;  // valid alone: accepted
-  ASSERT_TRUE(colour.setConfiguration(cue));
-  EXPECT_DOUBLE_EQ(cue.weight, 0.9);
-  stereo_pf::TrackerObservationConfig shown;
-  ASSERT_TRUE(colour.getCurrentConfiguration(shown, ros::Duration(5.0)));
-  EXPECT_DOUBLE_EQ(shown.weight, 0.9);
-  EXPECT_DOUBLE_EQ(shown.sigma, -1.0);
-  cue.weight = 1.0;
-  ASSERT_TRUE(colour.setConfiguration(cue));
+  cue.numbers["weight"] = 0.9;  // valid alone: accepted
+  ASSERT_TRUE(reconfigure(colour, cue));
+  EXPECT_DOUBLE_EQ(cue.numbers["weight"], 0.9);
+  ReconfigureValues shown;
+  ASSERT_TRUE(reconfigure(colour, shown));
+  EXPECT_DOUBLE_EQ(shown.numbers["weight"], 0.9);
+  EXPECT_DOUBLE_EQ(shown.numbers["sigma"], sigma);
+  cue.numbers["weight"] = 1.0;
+  ASSERT_TRUE(reconfigure(colour, cue));
 
   // An estimator the engine does not know: refused, the server shows the one in force; then a valid change works.
-  config.estimator = "bogus";
-  ASSERT_TRUE(engine.setConfiguration(config));
-  EXPECT_EQ(config.estimator, original.estimator);
-  EXPECT_EQ(config.particles, 50);
-  config.resample_threshold = 0.5;
-  ASSERT_TRUE(engine.setConfiguration(config));
-  EXPECT_DOUBLE_EQ(config.resample_threshold, 0.5);
-  EXPECT_EQ(config.estimator, original.estimator);
+  config.strs["estimator"] = "bogus";
+  ASSERT_TRUE(reconfigure(engine, config));
+  EXPECT_EQ(config.strs["estimator"], original.strs.at("estimator"));
+  EXPECT_EQ(config.numbers["particles"], 50);
+  config.numbers["resample_threshold"] = 0.5;
+  ASSERT_TRUE(reconfigure(engine, config));
+  EXPECT_DOUBLE_EQ(config.numbers["resample_threshold"], 0.5);
+  EXPECT_EQ(config.strs["estimator"], original.strs.at("estimator"));
 
   config = original;
-  ASSERT_TRUE(engine.setConfiguration(config));
-  EXPECT_EQ(config.particles, original.particles);
+  ASSERT_TRUE(reconfigure(engine, config));
+  EXPECT_EQ(config.numbers["particles"], original.numbers.at("particles"));
   geometry_msgs::Point p;
   int tracked = 0;
   for (size_t k = 0; k < 30; ++k)
@@ -778,12 +834,12 @@ TEST(Tracker, LoadTargetWithoutACueChangesNothing)
 TEST(Tracker, OverloadIsCountedAndExplained)
 {
   Harness& h = *harness;
-  dynamic_reconfigure::Client<stereo_pf::TrackerEngineConfig> engine(h.tracker() + "/engine");
-  stereo_pf::TrackerEngineConfig config;
-  ASSERT_TRUE(engine.getCurrentConfiguration(config, ros::Duration(5.0)));
-  const stereo_pf::TrackerEngineConfig original = config;
-  config.particles = 40000;
-  ASSERT_TRUE(engine.setConfiguration(config));
+  const std::string engine = h.tracker() + "/engine";
+  ReconfigureValues config;
+  ASSERT_TRUE(reconfigure(engine, config));
+  const ReconfigureValues original = config;
+  config.numbers["particles"] = 40000;
+  ASSERT_TRUE(reconfigure(engine, config));
   stereo_pf::TrackStatus status;
   ASSERT_TRUE(h.stepStatus(h.frames()[0], status, 10.0));  // applied
   // Counters at rest: every set received is tracked or dropped (none in flight).
@@ -825,7 +881,7 @@ TEST(Tracker, OverloadIsCountedAndExplained)
   EXPECT_EQ(new_tracked + new_overload, static_cast<uint64_t>(burst)) << "a frame vanished uncounted";
 
   config = original;
-  ASSERT_TRUE(engine.setConfiguration(config));
+  ASSERT_TRUE(reconfigure(engine, config));
   geometry_msgs::Point p;
   int good = 0;
   for (size_t k = 0; k < 30; ++k)

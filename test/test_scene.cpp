@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Tests of the synthetic scene generator: loading (shipped scenes and bad files), rendering geometry
 // and colour in both views, ground truth (visibility, ROI), trajectories and determinism.
 #include <gtest/gtest.h>

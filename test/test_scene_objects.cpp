@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Tests of the scene objects and motions added to the synthetic scene generator: boxes and cylinders
 // (faces, turning, pinhole sizes, ground truth, occlusion), the texture pattern, the ballistic and
 // random-walk trajectories, their YAML keys, the example scenes, and that the older shapes render exactly

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Tests of the synthetic scenes' camera and sensor model: the right camera's row offset, shot noise,
 // vignetting, per-frame gains, JPEG, motion blur, the published encodings, the YAML keys and their
 // validation, and that a scene without these options renders exactly as before. Small images, few frames.

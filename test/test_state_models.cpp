@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The 3D state models and the engine on rendered stereo frames (no ROS, no bag).
 #include <gtest/gtest.h>
 

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Soft stereo constraints (thesis eq. 5.15): kernel shape, fast vs naive accuracy, the StereoConstraints
 // state model constructed directly, and (printed, not asserted) timings.
 #include <gtest/gtest.h>

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The StereoMatch plugin constructed directly on rendered stereo pairs: it must peak at the true
 // disparity with sub-pixel precision, and handle bad input.
 #include <gtest/gtest.h>

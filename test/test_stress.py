@@ -1,4 +1,6 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: BSD-3-Clause
+# Copyright (c) 2026, stereo_pf developers
 """scripts/stress: its metric definitions on hand-made runs, its scene draw (deterministic, within its limits), and
 a smoke run (two short drawn scenes and a fake real-footage manifest over a synthetic bag) whose outputs must exist
 and be well formed. Registered with ctest as test_stress; arguments: --devel DIR (catkin devel space with

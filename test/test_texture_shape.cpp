@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The texture (TextureEdge) and shape (ShapeCircle) observation models constructed directly: edge
 // histograms of synthetic stripes, checkerboards and flat patches, the texture likelihood around a
 // checkered disc, the circle likelihood on rendered discs with and without clutter, robustness at the

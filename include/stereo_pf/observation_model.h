@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Base class of observation-model plugins (colour, texture, shape, ...): batch likelihoods of image
 // hypotheses. A new cue is one .cpp deriving from this, one line in observation_plugins.xml.
 #pragma once

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Base class of state-model plugins: what a particle is, how it moves, where it appears in the images,
 // and how the two views' likelihoods combine into weights.
 #pragma once

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Colour-outline observation model; see include/stereo_pf/plugins/colour_contour.h.
 #include "stereo_pf/plugins/colour_contour.h"
 

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // HSI colour-histogram observation model (thesis eq. 5.1-5.5); see include/stereo_pf/plugins/colour_hsi.h.
 #include "stereo_pf/plugins/colour_hsi.h"
 

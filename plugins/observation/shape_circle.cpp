@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Circle-contour observation model (thesis eq. 5.8-5.11); see include/stereo_pf/plugins/shape_circle.h.
 #include "stereo_pf/plugins/shape_circle.h"
 #include "stereo_pf/core/histogram.h"

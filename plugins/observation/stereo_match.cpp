@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Stereo-consistency observation model (ZNCC of a hypothesis's left and right grey patches);
 // see include/stereo_pf/plugins/stereo_match.h.
 #include "stereo_pf/plugins/stereo_match.h"

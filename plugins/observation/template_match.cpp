@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Grey-level template observation model (weighted ZNCC with the boxed object, slowly adapted);
 // see include/stereo_pf/plugins/template_match.h.
 #include "stereo_pf/plugins/template_match.h"

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Edge-texture observation model (thesis eq. 4.1, 5.6-5.7); see include/stereo_pf/plugins/texture_edge.h.
 #include "stereo_pf/plugins/texture_edge.h"
 

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // stereo_pf/Position3D: {x, y, z} with a Gaussian random walk (thesis 5.1, eq. 5.12-5.14).
 #include "stereo_pf/plugins/position_3d.h"
 

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Stereo-constraints state model (thesis 5.1, 5.3, 5.4): a left and a right 2D particle set coupled by
 // eq. 5.15. See include/stereo_pf/plugins/stereo_constraints.h for the parameters.
 #include "stereo_pf/plugins/stereo_constraints.h"

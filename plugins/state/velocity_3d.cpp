@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // stereo_pf/Velocity3D: constant velocity with Gaussian acceleration noise; dt from the frame stamps.
 #include "stereo_pf/plugins/velocity_3d.h"
 

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 #include "stereo_pf/core/acquisition.h"
 
 #include <algorithm>

@@ -1,8 +1,11 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 #include "stereo_pf/core/engine.h"
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <sstream>
 #include <stdexcept>
 
 #include <opencv2/imgproc.hpp>
@@ -49,42 +52,154 @@ std::string toString(Support support)
   return "unsure";
 }
 
+// The engine's parameter table: every engine parameter is declared here once (name, range, whether it can be changed
+// while running, what it means; its default is EngineConfig's member initialiser). fromParameters() reads through it,
+// the nodelet's reconfigure server serves its reconfigurable rows, and test_parameters checks config/tracker.yaml
+// against it.
+namespace
+{
+struct EngineField
+{
+  ParameterSpec spec;
+  /// Read the parameter into its member (with the member's default as the fallback); throws ParameterError.
+  void (*read)(const EngineField& field, const Parameters& params, EngineConfig& config);
+  /// The member's value as text (the default of a default-constructed EngineConfig).
+  std::string (*text)(const EngineConfig& config);
+};
+
+std::string number(double v)
+{
+  std::ostringstream s;
+  s.precision(17);
+  s << v;
+  return s.str();
+}
+
+// One row per member type; the member is a template argument, so a row is a name, a member, a range and words.
+template <int EngineConfig::*M>
+EngineField intField(const char* name, int min, int max, bool reconfigurable, const char* description)
+{
+  return { { name, ParameterSpec::Type::Int, "", double(min), double(max), {}, description, reconfigurable },
+           [](const EngineField& f, const Parameters& p, EngineConfig& c) {
+             c.*M = p.getInt(f.spec.name, c.*M, int(f.spec.min), int(f.spec.max), f.spec.description);
+           },
+           [](const EngineConfig& c) { return std::to_string(c.*M); } };
+}
+
+template <double EngineConfig::*M>
+EngineField doubleField(const char* name, double min, double max, bool reconfigurable, const char* description)
+{
+  return { { name, ParameterSpec::Type::Double, "", min, max, {}, description, reconfigurable },
+           [](const EngineField& f, const Parameters& p, EngineConfig& c) {
+             c.*M = p.getDouble(f.spec.name, c.*M, f.spec.min, f.spec.max, f.spec.description);
+           },
+           [](const EngineConfig& c) { return number(c.*M); } };
+}
+
+template <bool EngineConfig::*M>
+EngineField boolField(const char* name, bool reconfigurable, const char* description)
+{
+  return { { name, ParameterSpec::Type::Bool, "", 0.0, 1.0, {}, description, reconfigurable },
+           [](const EngineField& f, const Parameters& p, EngineConfig& c) {
+             c.*M = p.getBool(f.spec.name, c.*M, f.spec.description);
+           },
+           [](const EngineConfig& c) { return std::string(c.*M ? "true" : "false"); } };
+}
+
+const std::vector<EngineField>& engineFields()
+{
+  using C = EngineConfig;
+  static const std::vector<EngineField> fields = {
+    intField<&C::particles>("particles", 1, 1000000, true, "particles per set (a change restarts the filter)"),
+    doubleField<&C::resample_threshold>("resample_threshold", 0.0, 1.0, true,
+                                        "resample when ESS < threshold x N (1: every frame, as the thesis; 0: never)"),
+    { { "estimator", ParameterSpec::Type::String, "", 0.0, 0.0, { "mean", "sum_inverse_distances", "density" },
+        "point estimator: mean (thesis 6.4.1), sum_inverse_distances (6.4.2, O(N^2)) or density (6.4.3)", true },
+      [](const EngineField& f, const Parameters& p, EngineConfig& c) {
+        c.estimator = estimatorFromString(
+            p.getString(f.spec.name, toString(c.estimator), f.spec.allowed, f.spec.description));
+      },
+      [](const EngineConfig& c) { return toString(c.estimator); } },
+    doubleField<&C::density_radius>("density_radius", 1e-6, 1e6, true,
+                                    "radius of the density estimator, state units (m; px for the stereo-constraints "
+                                    "sets)"),
+    { { "seed", ParameterSpec::Type::Int, "", 0.0, 2147483647.0, {}, "RNG seed: identical input + seed gives "
+        "identical output", false },
+      [](const EngineField& f, const Parameters& p, EngineConfig& c) {
+        c.seed = static_cast<unsigned long>(
+            p.getInt(f.spec.name, static_cast<int>(c.seed), int(f.spec.min), int(f.spec.max), f.spec.description));
+      },
+      [](const EngineConfig& c) { return std::to_string(c.seed); } },
+    doubleField<&C::nominal_dt>("nominal_dt", 1e-4, 10.0, false,
+                                "s; dt of the first frame and of repeated or backwards stamps"),
+    doubleField<&C::found_similarity>("found_similarity", 0.0, 1.0, true,
+                                      "best mean cue similarity at or above this counts as 'object seen'"),
+    doubleField<&C::lost_similarity>("lost_similarity", 0.0, 1.0, true,
+                                     "below this counts as 'object not seen' (kept <= found_similarity)"),
+    intField<&C::found_frames>("found_frames", 1, 1000, false, "consecutive seen frames to switch to tracking"),
+    intField<&C::lost_frames>("lost_frames", 1, 1000, false, "consecutive unseen frames to switch to lost"),
+    doubleField<&C::respawn_fraction>("respawn_fraction", 0.0, 1.0, true,
+                                      "fraction of each set redrawn from the prior every frame while not tracking"),
+    doubleField<&C::tracking_respawn_fraction>("tracking_respawn_fraction", 0.0, 1.0, false,
+                                               "while tracking, share of each set moved every frame to where the "
+                                               "cues' maps see the target (the recovery search)"),
+    doubleField<&C::proposal_fraction>("proposal_fraction", 0.0, 1.0, false,
+                                       "share of the redrawn particles proposed where the cues see the target"),
+    doubleField<&C::jump_weight>("jump_weight", 0.0, 1.0, false,
+                                 "prior weight of a recovery particle relative to a predicted one"),
+    doubleField<&C::local_fraction>("local_fraction", 0.0, 1.0, false,
+                                    "while tracking, share of each set moved every frame around the local search's "
+                                    "match near the object's predicted image position (0: off)"),
+    doubleField<&C::proposal_min_depth>("proposal_min_depth", 1e-3, 1e6, false,
+                                        "m; nearest depth a proposal may have"),
+    doubleField<&C::refine_jitter>("refine_jitter", 0.0, 10.0, true,
+                                   "before the refining cues, each particle is jittered by N(0, refine_jitter^2 C), "
+                                   "C the set's covariance"),
+    doubleField<&C::refine_search_weight>("refine_search_weight", 0.0, 1.0, true,
+                                          "while searching or lost, refining cues are applied with the others at "
+                                          "their weight times this (0: skipped)"),
+    doubleField<&C::min_disparity>("min_disparity", 0.01, 100.0, false,
+                                   "px; far limit of the viewing volume: the depth fx b / min_disparity"),
+    doubleField<&C::max_depth>("max_depth", 0.0, 1e6, true,
+                               "m; far limit of the viewing volume when nearer than where the disparity falls below "
+                               "min_disparity (0: that alone)"),
+    intField<&C::background_samples>("background_samples", 0, 1000, false,
+                                     "places beside the best particle, on its rows, whose median similarity is the "
+                                     "background (0: no check)"),
+    doubleField<&C::background_margin>("background_margin", 0.0, 1.0, true,
+                                       "the best particle counts as seen only when its similarity beats the "
+                                       "background's by this"),
+    boolField<&C::acquire>("acquire", false,
+                           "learning a target matches its box in the right image and starts the particles there, "
+                           "tracking; false: searched for from the prior"),
+  };
+  return fields;
+}
+}  // namespace
+
+const std::vector<ParameterSpec>& EngineConfig::table()
+{
+  static const std::vector<ParameterSpec> table = [] {
+    const EngineConfig defaults;
+    std::vector<ParameterSpec> rows;
+    for (const EngineField& f : engineFields())
+    {
+      rows.push_back(f.spec);
+      rows.back().default_value = f.text(defaults);
+    }
+    return rows;
+  }();
+  return table;
+}
+
 EngineConfig EngineConfig::fromParameters(const Parameters& p)
 {
   EngineConfig c;
-  c.particles = p.getInt("particles", c.particles, 1, 1000000);
-  c.resample_threshold = p.getDouble("resample_threshold", c.resample_threshold, 0.0, 1.0);
-  try
-  {
-    c.estimator = estimatorFromString(p.getString("estimator", toString(c.estimator)));
-  }
-  catch (const std::invalid_argument& e)
-  {
-    throw ParameterError("parameter '" + (p.prefix().empty() ? "" : p.prefix() + "/") + "estimator': " + e.what());
-  }
-  c.density_radius = p.getDouble("density_radius", c.density_radius, 1e-6, 1e6);
-  c.seed = static_cast<unsigned long>(p.getInt("seed", static_cast<int>(c.seed), 0, 2147483647));
-  c.nominal_dt = p.getDouble("nominal_dt", c.nominal_dt, 1e-4, 10.0);
-  c.found_similarity = p.getDouble("found_similarity", c.found_similarity, 0.0, 1.0);
-  c.lost_similarity = p.getDouble("lost_similarity", c.lost_similarity, 0.0, 1.0);
+  for (const EngineField& f : engineFields())
+    f.read(f, p, c);
   if (c.lost_similarity > c.found_similarity)
     throw ParameterError("parameter 'lost_similarity' (" + std::to_string(c.lost_similarity) +
                          ") must not exceed 'found_similarity' (" + std::to_string(c.found_similarity) + ")");
-  c.found_frames = p.getInt("found_frames", c.found_frames, 1, 1000);
-  c.lost_frames = p.getInt("lost_frames", c.lost_frames, 1, 1000);
-  c.respawn_fraction = p.getDouble("respawn_fraction", c.respawn_fraction, 0.0, 1.0);
-  c.tracking_respawn_fraction = p.getDouble("tracking_respawn_fraction", c.tracking_respawn_fraction, 0.0, 1.0);
-  c.proposal_fraction = p.getDouble("proposal_fraction", c.proposal_fraction, 0.0, 1.0);
-  c.jump_weight = p.getDouble("jump_weight", c.jump_weight, 0.0, 1.0);
-  c.local_fraction = p.getDouble("local_fraction", c.local_fraction, 0.0, 1.0);
-  c.proposal_min_depth = p.getDouble("proposal_min_depth", c.proposal_min_depth, 1e-3, 1e6);
-  c.refine_jitter = p.getDouble("refine_jitter", c.refine_jitter, 0.0, 10.0);
-  c.refine_search_weight = p.getDouble("refine_search_weight", c.refine_search_weight, 0.0, 1.0);
-  c.min_disparity = p.getDouble("min_disparity", c.min_disparity, 0.01, 100.0);
-  c.max_depth = p.getDouble("max_depth", c.max_depth, 0.0, 1e6);
-  c.background_samples = p.getInt("background_samples", c.background_samples, 0, 1000);
-  c.background_margin = p.getDouble("background_margin", c.background_margin, 0.0, 1.0);
-  c.acquire = p.getBool("acquire", c.acquire);
   return c;
 }
 

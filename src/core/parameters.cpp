@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 #include "stereo_pf/core/parameters.h"
 
 #include <algorithm>
@@ -52,10 +54,91 @@ Parameters Parameters::copy() const
   return p;
 }
 
-void Parameters::noteAsked(const std::string& key) const
+void Parameters::declare(ParameterSpec spec) const
+{
+  spec.name = full(spec.name);
+  std::lock_guard<std::mutex> lock(asked_->mutex);
+  asked_->keys.insert(spec.name);
+  for (ParameterSpec& s : asked_->declared)
+    if (s.name == spec.name)
+    {
+      s = std::move(spec);  // the last read declares it (a component reads its parameters again when reconfigured)
+      return;
+    }
+  asked_->declared.push_back(std::move(spec));
+}
+
+std::vector<ParameterSpec> Parameters::declared() const
+{
+  const std::string p = prefix_.empty() ? "" : prefix_ + "/";
+  std::vector<ParameterSpec> out;
+  std::lock_guard<std::mutex> lock(asked_->mutex);
+  for (const ParameterSpec& s : asked_->declared)
+    if (s.name.compare(0, p.size(), p) == 0)
+    {
+      out.push_back(s);
+      out.back().name = s.name.substr(p.size());
+    }
+  return out;
+}
+
+void Parameters::forgetAsked()
 {
   std::lock_guard<std::mutex> lock(asked_->mutex);
-  asked_->keys.insert(full(key));
+  asked_->keys.clear();
+  asked_->declared.clear();
+}
+
+const char* toString(ParameterSpec::Type type)
+{
+  switch (type)
+  {
+    case ParameterSpec::Type::Bool:
+      return "bool";
+    case ParameterSpec::Type::Int:
+      return "int";
+    case ParameterSpec::Type::Double:
+      return "double";
+    case ParameterSpec::Type::String:
+      return "str";
+    case ParameterSpec::Type::List:
+      return "list";
+  }
+  return "str";
+}
+
+std::string Parameters::check(const ParameterSpec& spec, const std::string& value) const
+{
+  // The getter itself on a tree of this one value, under this view's namespace (so the message names the key).
+  Parameters trial;
+  trial.prefix_ = prefix_;
+  trial.set(spec.name, value);
+  try
+  {
+    switch (spec.type)
+    {
+      case ParameterSpec::Type::Bool:
+        trial.getBool(spec.name, false);
+        break;
+      case ParameterSpec::Type::Int:
+        trial.getInt(spec.name, 0, static_cast<int>(spec.min), static_cast<int>(spec.max));
+        break;
+      case ParameterSpec::Type::Double:
+        trial.getDouble(spec.name, 0.0, spec.min, spec.max);
+        break;
+      case ParameterSpec::Type::String:
+        trial.getString(spec.name, "", spec.allowed);
+        break;
+      case ParameterSpec::Type::List:
+        trial.getDoubles(spec.name, {});
+        break;
+    }
+  }
+  catch (const ParameterError& e)
+  {
+    return e.what();
+  }
+  return "";
 }
 
 std::vector<std::string> Parameters::askedKeys() const
@@ -161,9 +244,10 @@ std::vector<std::string> Parameters::keys() const
   return out;
 }
 
-double Parameters::getDouble(const std::string& key, double fallback, double min, double max) const
+double Parameters::getDouble(const std::string& key, double fallback, double min, double max,
+                             const std::string& description) const
 {
-  noteAsked(key);
+  declare({ key, ParameterSpec::Type::Double, formatDouble(fallback), min, max, {}, description, false });
   if (!has(key))
     return fallback;
   double v = 0.0;
@@ -176,9 +260,10 @@ double Parameters::getDouble(const std::string& key, double fallback, double min
   return v;
 }
 
-int Parameters::getInt(const std::string& key, int fallback, int min, int max) const
+int Parameters::getInt(const std::string& key, int fallback, int min, int max, const std::string& description) const
 {
-  noteAsked(key);
+  declare({ key, ParameterSpec::Type::Int, std::to_string(fallback), static_cast<double>(min), static_cast<double>(max),
+            {}, description, false });
   if (!has(key))
     return fallback;
   double v = 0.0;
@@ -191,9 +276,9 @@ int Parameters::getInt(const std::string& key, int fallback, int min, int max) c
   return static_cast<int>(v);
 }
 
-bool Parameters::getBool(const std::string& key, bool fallback) const
+bool Parameters::getBool(const std::string& key, bool fallback, const std::string& description) const
 {
-  noteAsked(key);
+  declare({ key, ParameterSpec::Type::Bool, fallback ? "true" : "false", 0.0, 1.0, {}, description, false });
   if (!has(key))
     return fallback;
   std::string t = trim(raw(key));
@@ -206,9 +291,9 @@ bool Parameters::getBool(const std::string& key, bool fallback) const
 }
 
 std::string Parameters::getString(const std::string& key, const std::string& fallback,
-                                  const std::vector<std::string>& allowed) const
+                                  const std::vector<std::string>& allowed, const std::string& description) const
 {
-  noteAsked(key);
+  declare({ key, ParameterSpec::Type::String, fallback, 0.0, 0.0, allowed, description, false });
   const std::string v = has(key) ? trim(raw(key)) : fallback;
   if (!allowed.empty() && std::find(allowed.begin(), allowed.end(), v) == allowed.end())
   {
@@ -220,9 +305,13 @@ std::string Parameters::getString(const std::string& key, const std::string& fal
   return v;
 }
 
-std::vector<double> Parameters::getDoubles(const std::string& key, const std::vector<double>& fallback) const
+std::vector<double> Parameters::getDoubles(const std::string& key, const std::vector<double>& fallback,
+                                           const std::string& description) const
 {
-  noteAsked(key);
+  std::string text = "[";
+  for (double v : fallback)
+    text += (text.size() > 1 ? ", " : "") + formatDouble(v);
+  declare({ key, ParameterSpec::Type::List, text + "]", 0.0, 0.0, {}, description, false });
   if (!has(key))
     return fallback;
   std::string t = trim(raw(key));

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Non-virtual initialisation of the plugin base classes (DESIGN style 2).
 #include "stereo_pf/observation_model.h"
 #include "stereo_pf/state_model.h"

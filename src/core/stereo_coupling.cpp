@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Soft stereo constraints (thesis 5.4, eq. 5.15): naive reference and a fast grid evaluation.
 //
 // Method of StereoCoupling::compute ("Gaussian gridding" with an exact cumulative along the rows).

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The engine the nodelet runs, its plugins and the parameter tree they read, and the lock that keeps other threads
 // out of it mid-step. Built once at start-up from the private namespace.
 #pragma once
@@ -14,12 +16,13 @@ namespace stereo_pf
 {
 struct EngineHost
 {
-  /// The whole private tree; written by the frame thread only.
+  /// The whole private tree; written under `mutex` only (reconfigure), read by the engine and plugins in a step.
   Parameters params;
   /// The engine and its plugins (the ClassLoaders inside outlive the plugins).
   std::unique_ptr<Tracker> tracker;
-  /// Held by the frame thread from applying the queued changes to the end of publishing, and by the services
-  /// that touch the engine (save/load target): they run between two steps, never during one.
+  /// Held by the frame thread for a whole step (from applying the queued requests to the end of publishing), and
+  /// by what touches the engine or the tree from other threads (save/load target, reconfigure): they run between
+  /// two steps, never during one.
   std::mutex mutex;
 
   FilterEngine& engine() { return tracker->engine(); }

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Receiving on the single-threaded queue: only hand the set over, never wait.
 #include "frame_input.h"
 

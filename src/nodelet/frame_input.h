@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Receiving: the four stereo topics through a synchroniser, and ~target_roi_topic. Runs on the nodelet's
 // single-threaded queue and never waits: a complete set only gets its arrival stamped and goes into the frame
 // slot (a set still waiting there is replaced and counted as overload), so the subscriber queues never overflow.

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // One synchronised stereo set as the nodelet received it (the pieces of the nodelet pass it along).
 #pragma once
 

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The frame thread (see the header).
 #include "frame_pipeline.h"
 
@@ -12,14 +14,12 @@
 namespace stereo_pf
 {
 FramePipeline::FramePipeline(const std::string& name, const NodeletOptions& options, EngineHost& host,
-                             TrackerStatus& status, TargetRequests& requests, ReconfigureBridge& reconfigure,
-                             FrameInput& input)
+                             TrackerStatus& status, TargetRequests& requests, FrameInput& input)
   : name_(name)
   , options_(options)
   , host_(host)
   , status_(status)
   , requests_(requests)
-  , reconfigure_(reconfigure)
   , input_(input)
   , stereo_input_(options.input)
   , source_input_(options.input)
@@ -150,7 +150,6 @@ void FramePipeline::applyPending(const StereoFrame& frame)
     trail_.clear();
     last_tracked_.reset();
   }
-  reconfigure_.apply();
   if (roi)
     learnRequestedTarget(*roi, frame);
 }

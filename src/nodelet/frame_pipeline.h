@@ -1,7 +1,10 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The frame thread: takes the newest stereo set from the slot, turns it into a rectified StereoFrame, applies what
-// was queued for the engine (reconfigure values, a target request, a trail to clear), runs the engine's step() and
+// was queued for it (a target request, a trail to clear), runs the engine's step() (which applies what was queued
+// for the engine: reconfigured values, a reset) and
 // publishes the estimate, ~status, the particles, markers and the debug images (those only while subscribed).
-// Only this thread runs the engine and writes the parameter tree the plugins read.
+// Only this thread runs the engine; it holds EngineHost::mutex for each whole step.
 #pragma once
 
 #include <atomic>
@@ -21,7 +24,6 @@
 #include "frame_input.h"
 #include "frame_messages.h"
 #include "nodelet_options.h"
-#include "reconfigure_bridge.h"
 #include "stereo_pf/ros/debug_drawing.h"
 #include "stereo_pf/ros/frame_slot.h"
 #include "stereo_pf/ros/stereo_input.h"
@@ -35,7 +37,7 @@ class FramePipeline
 {
 public:
   FramePipeline(const std::string& name, const NodeletOptions& options, EngineHost& host, TrackerStatus& status,
-                TargetRequests& requests, ReconfigureBridge& reconfigure, FrameInput& input);
+                TargetRequests& requests, FrameInput& input);
   ~FramePipeline();
 
   /// The slot the receiving side puts sets into.
@@ -55,7 +57,7 @@ private:
   void workerLoop();
   /// Track one set (workerLoop catches whatever it throws).
   void processFrame(const FrameMessages& set);
-  /// Apply queued reconfigure values and target requests (host mutex held).
+  /// Apply a queued target request and trail clearing (host mutex held).
   void applyPending(const StereoFrame& frame);
   /// Learn a queued target request from `frame` or from the request's own frame, and answer it.
   void learnRequestedTarget(const RoiRequest& request, const StereoFrame& frame);
@@ -71,7 +73,6 @@ private:
   EngineHost& host_;
   TrackerStatus& status_;
   TargetRequests& requests_;
-  ReconfigureBridge& reconfigure_;
   FrameInput& input_;
 
   LatestSlot<FrameMessages> slot_;

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The tracker nodelet's own parameters: structural, read once at start-up (docs/ros_runtime.md, config/tracker.yaml's
 // "ROS runtime" section).
 #pragma once

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The target requests waiting for the frame thread, and their answers: ~set_target (which waits for its answer),
 // the start-up ~target_roi, and a region from ~target_roi_topic (paired with the frame it belongs to). Only the
 // newest request waits; one that is replaced is answered "superseded". Thread-safe.

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The services: ~set_target (queued for the frame thread, answered when a frame has learned it), ~save_target and
 // ~load_target (between two steps, under the engine's lock), ~reset. They run on the multi-threaded queue.
 #pragma once

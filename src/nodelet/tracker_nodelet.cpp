@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The tracker nodelet: set-up and teardown of its pieces (see the header).
 #include "tracker_nodelet.h"
 
@@ -50,7 +52,7 @@ void TrackerNodelet::onInit()
   status_->setHasTarget(host_.engine().hasTarget());
 
   input_ = std::make_unique<FrameInput>(getName(), requests_, *status_);
-  pipeline_ = std::make_unique<FramePipeline>(getName(), options_, host_, *status_, requests_, *reconfigure_, *input_);
+  pipeline_ = std::make_unique<FramePipeline>(getName(), options_, host_, *status_, requests_, *input_);
   services_ = std::make_unique<TargetServices>(getName(), options_, host_, requests_, *pipeline_, *status_);
   input_->connect(options_, pipeline_->slot());  // the synchroniser on unsubscribed filters
   reconfigure_->start(mt_pnh);

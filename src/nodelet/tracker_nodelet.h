@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The tracker nodelet: camera1394stereo-style stereo topics in, 3D estimate, track status, particles, markers,
 // debug images, TF and diagnostics out. See docs/ros_runtime.md for topics, parameters and services. Private: the
 // class is reached through pluginlib (stereo_pf/TrackerNodelet) only, and this header is not installed.
@@ -8,7 +10,7 @@
 //  - FrameInput: the synchronised stereo topics and ~target_roi_topic;
 //  - FramePipeline: the frame thread (track, publish);
 //  - TargetRequests: target regions waiting for the frame thread, and their answers;
-//  - ReconfigureBridge: dynamic_reconfigure servers -> the engine;
+//  - ReconfigureBridge: a ParameterServer (dynamic_reconfigure) per component, driven by its parameter table -> the engine;
 //  - TargetServices: ~set_target, ~save_target, ~load_target, ~reset;
 //  - TrackerStatus: counters, drop warnings, diagnostics.
 //
@@ -19,13 +21,14 @@
 //    slot when the next one comes is replaced and counted as dropped (overload): the tracker always works on the
 //    newest frame, and the latency it reports (arrival -> publish) includes the wait.
 //  - One worker thread (FramePipeline, the frame thread) takes sets from the slot, runs the engine's step() and
-//    publishes. Only it runs the engine and writes the Parameters tree the plugins read.
+//    publishes, holding EngineHost::mutex for the whole of it. Only it runs the engine.
 //  - Services, dynamic_reconfigure and the diagnostics timer run on the multi-threaded queue. They never
-//    touch the engine mid-step: a reconfigure value is checked at once on a copy of the configuration in force
-//    (a rejected one changes nothing and the server is answered with the values in force), then queued and applied
-//    by the frame thread before its next step(); set_target regions are queued the same way; save/load target take
-//    EngineHost::mutex, which the frame thread holds from applying the queued changes to the end of publishing;
-//    reset uses the engine's own thread-safe reset().
+//    touch the engine mid-step: a reconfigure change is checked at once on a copy of the tree (a rejected one
+//    changes nothing and the server is answered with the values in force); accepted, it is written into the tree
+//    under EngineHost::mutex (between two steps) and queued in the engine (setConfig, requestPluginReconfigure),
+//    which applies it at the start of its next step. set_target regions are queued in TargetRequests and learned
+//    by the frame thread before its next step; save/load target take EngineHost::mutex; reset uses the engine's
+//    own thread-safe reset().
 //  - Statistics for the diagnostics and ~status are guarded by TrackerStatus's own mutex.
 #pragma once
 

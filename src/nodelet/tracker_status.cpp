@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Statistics, drop warnings and diagnostics of the tracker nodelet.
 #include "tracker_status.h"
 

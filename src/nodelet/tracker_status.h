@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The nodelet's statistics and how they are reported: frame counters, drops (counted and warned about, throttled
 // per reason), timing windows, the last result; the diagnostics (diagnostic_updater on a wall timer) and the
 // counters of each ~status message. Every method is thread-safe (one mutex): the receiving queue, the frame thread

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 #include "stereo_pf/ros/plugin_loader.h"
 
 #include <algorithm>
@@ -42,7 +44,7 @@ const std::vector<std::string> kRosRuntimeParameters = {
   "approximate_sync", "queue_size", "images_rectified", "max_stamp_difference", "image_transport", "camera_frame",
   "object_frame", "publish_tf", "camera_parent_frame", "target_file", "target_roi", "target_roi_topic",
   "set_target_timeout", "marker_radius", "marker_sigma_scale", "trajectory_length", "diagnostic_period",
-  "publish_when_lost", "state_model/acceleration_noise"
+  "publish_when_lost"
 };
 
 std::vector<std::string> unknownParameters(const Parameters& params, const std::vector<std::string>& also_known)
@@ -155,6 +157,27 @@ std::shared_ptr<ObservationModel> Tracker::createObservationModel(const std::str
   auto model = create(*observation_loader_, "observation model", type, name);
   model->initialize(name, params);
   return model;
+}
+
+std::vector<ParameterSpec> Tracker::pluginTable(const std::string& type, const std::string& component,
+                                                const Parameters& params)
+{
+  Parameters trial = params.copy();  // its own record of what was asked
+  const Parameters view = trial.sub(component);
+  std::vector<ParameterSpec> table;
+  auto mark = [&](const auto& model) {
+    table = view.declared();
+    trial.forgetAsked();
+    model->reconfigure();
+    const std::vector<std::string> again = view.askedKeys();
+    for (ParameterSpec& spec : table)
+      spec.reconfigurable = std::find(again.begin(), again.end(), spec.name) != again.end();
+  };
+  if (component == "state_model")
+    mark(createStateModel(type, component, view));
+  else
+    mark(createObservationModel(type, component, view));
+  return table;
 }
 
 }  // namespace stereo_pf

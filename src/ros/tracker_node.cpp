@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // tracker_node: the TrackerNodelet in a process of its own (same topics, parameters and services under ~).
 #include <nodelet/loader.h>
 #include <ros/ros.h>

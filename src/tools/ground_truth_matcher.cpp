@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // ground_truth_matcher: republish the ground truth of the frame each estimate was computed from, when that
 // estimate arrives, so rviz draws the truth and the estimate of one and the same frame.
 //

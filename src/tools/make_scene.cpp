@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // make_scene: render a synthetic stereo scene (scenes/*.yaml) into a bag that looks like a
 // camera1394stereo recording of a rectified pair, plus ground truth for evaluation.
 //

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // scene_publisher: render a synthetic scene (scenes/*.yaml, as make_scene) live, in real time, on
 // camera1394stereo's topics, so the tracker, rviz and the tests run without a camera.
 //

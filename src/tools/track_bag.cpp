@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // track_bag: run the tracker (or an OpenCV baseline) over a bag of stereo frames offline (no roscore),
 // write a CSV and a summary.
 #include <chrono>

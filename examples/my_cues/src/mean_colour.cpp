@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // my_cues/MeanColour: an example stereo_pf cue from a package of its own (docs/writing_a_cue.md walks through it).
 // It compares the mean colour of a window around each hypothesis with the mean colour of the user's box: a weak
 // cue on its own, but short enough to read in one sitting, and it exercises every hook a cue must provide.

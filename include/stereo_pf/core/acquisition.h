@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Acquisition from a box: the user's box in the left image is matched along the same rows of the right
 // image, which gives the object's disparity, hence its depth and metric size, before any particle exists.
 // ROS-free (OpenCV core + Eigen).

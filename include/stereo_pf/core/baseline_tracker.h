@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // OpenCV's 2D trackers (CSRT, KCF, CamShift) as stereo baselines for the particle filters: one tracker
 // per image, both started from the same target box, box centres triangulated with StereoGeometry.
 // ROS-free; track_bag --baseline runs it over a bag so its rows compare directly with the filters'.

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // HSI colour space (thesis ch. 4.1) and its quantisation into histogram bins.
 #pragma once
 

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The particle-filter engine: owns the particle sets and the RNG, runs one stereo frame through
 // predict -> project -> observe -> couple -> normalise -> estimate -> resample.
 #pragma once
@@ -104,6 +106,9 @@ struct EngineConfig
 
   /// Read from `params` (missing keys keep their defaults); throws ParameterError.
   static EngineConfig fromParameters(const Parameters& params);
+  /// The engine's parameter table (engine.cpp declares each parameter there once): name, default (these
+  /// members' initial values), range, description, and whether it can be changed while running.
+  static const std::vector<ParameterSpec>& table();
 };
 
 /// Result of one frame.

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Point estimates of a weighted particle cloud (thesis 6.4) and its weighted covariance.
 #pragma once
 

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Accuracy summary of a tracked sequence against ground truth (what track_bag prints and tests assert).
 #pragma once
 

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Per-frame cache of per-image work shared by every particle and every observation model.
 #pragma once
 

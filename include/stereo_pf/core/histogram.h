@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Normalised histograms over bin-index images and the Bhattacharyya similarity (thesis eq. 5.1-5.5).
 #pragma once
 

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Image-space hypotheses: where a batch of particles says the object is in one image.
 #pragma once
 

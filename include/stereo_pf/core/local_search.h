@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The local search (a proposal policy of the engine while tracking): where, near the image position the
 // object's last motion predicts, the evidence cues see it best at its present apparent size; first in the left
 // image on a grid scaled to the object, then along the same row of the right image over the disparities its

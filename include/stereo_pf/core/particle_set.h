@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Particles in structure-of-arrays storage with log-weights.
 #pragma once
 

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The one random number generator type of the engine (seeded explicitly, never from the clock).
 #pragma once
 

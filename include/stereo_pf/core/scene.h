@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Synthetic stereo scenes: a YAML description (camera, shaded balls, square patches, boxes and cylinders on
 // trajectories, background, occluders, sensor noise) and a ray-casting renderer of the rectified pair with
 // ground truth.

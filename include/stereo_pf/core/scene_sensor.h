@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Camera sensor model of the synthetic scenes: what happens to the rendered light before and after it
 // becomes an 8-bit image (vignetting, per-frame gains, read and shot noise, quantisation, JPEG), and the
 // image encodings make_scene can publish. ROS-free; scene.h's SceneRenderer applies it to every view.

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The image of a sphere under perspective (shared by the cues that look at the object's outline).
 #pragma once
 

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Soft stereo constraints between a left and a right 2D particle set (thesis 5.4, eq. 5.15).
 #pragma once
 

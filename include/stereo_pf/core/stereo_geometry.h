@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Rectified stereo pinhole geometry (thesis 6.3, eq. 6.1-6.3).
 #pragma once
 

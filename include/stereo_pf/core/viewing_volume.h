@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // What the stereo pair can observe: the depths at which a point is measurable by both cameras, and the image
 // area a hypothesis must overlap. Derived from the calibration (focal length, baseline, image size), so the
 // engine's bounds follow the camera, not one scene.

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The colour-outline observation model, pluginlib class stereo_pf/ColourContour. Declared here so tests can
 // construct it directly; defined and exported in plugins/observation/colour_contour.cpp.
 #pragma once

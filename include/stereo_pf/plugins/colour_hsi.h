@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The HSI colour-histogram observation model (thesis ch. 4.1, eq. 5.1-5.5), pluginlib class
 // stereo_pf/ColourHSI. Declared here so tests can construct it directly; defined and exported in
 // plugins/observation/colour_hsi.cpp.

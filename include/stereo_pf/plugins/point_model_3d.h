@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Shared base of the 3D state models (Position3D, Velocity3D): the first three state coordinates are
 // the object centre {x, y, z} in the left optical frame, projected into both images.
 #pragma once

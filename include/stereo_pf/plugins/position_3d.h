@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // stereo_pf/Position3D: the thesis's 3D filter, state {x, y, z}.
 #pragma once
 

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The circle-contour observation model (thesis 5.2, eq. 5.8-5.11), pluginlib class stereo_pf/ShapeCircle.
 // Declared here so tests can construct it directly; defined and exported in
 // plugins/observation/shape_circle.cpp.

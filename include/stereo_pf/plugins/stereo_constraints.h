@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The stereo-constraints (SC) state model (thesis 5.1, 5.3, 5.4): two 2D particle sets, one per image,
 // coupled by the soft epipolar and vergence constraints of eq. 5.15. Plugin `stereo_pf/StereoConstraints`.
 #pragma once

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The appearance-template observation model, pluginlib class stereo_pf/TemplateMatch. Declared here so tests can
 // construct it directly; defined and exported in plugins/observation/template_match.cpp.
 #pragma once

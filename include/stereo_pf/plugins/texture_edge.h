@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The edge-texture observation model (thesis ch. 4.2, eq. 4.1, 5.6-5.7), pluginlib class
 // stereo_pf/TextureEdge. Declared here so tests can construct it directly; defined and exported in
 // plugins/observation/texture_edge.cpp.

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // stereo_pf/Velocity3D: state {x, y, z, vx, vy, vz} with constant velocity (thesis 5.1's richer option).
 #pragma once
 

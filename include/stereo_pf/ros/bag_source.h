@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Reading synchronised stereo frames (and optional ground truth) from a bag, without a roscore.
 #pragma once
 

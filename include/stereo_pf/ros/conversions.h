@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // ROS message <-> engine conversions: calibration from camera_info, images to 8-bit BGR/mono, rectification.
 #pragma once
 

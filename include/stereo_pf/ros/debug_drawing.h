@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Debug images: the particles (coloured by weight) and the estimate drawn over one rectified image.
 #pragma once
 

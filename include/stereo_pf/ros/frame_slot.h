@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // A one-place mailbox between the thread that receives frames and the thread that tracks them: the receiver
 // never waits, the tracker always gets the newest frame, and every frame that was replaced before the tracker
 // took it is counted. This is the tracker's drop policy under overload (keep the newest, count the rest).

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Building a FilterEngine and its plugins from configuration through pluginlib.
 #pragma once
 
@@ -31,8 +33,7 @@ const std::vector<std::pair<std::string, std::string>> kDefaultObservationModels
   { "stereo_pf/ColourContour", "colour_contour" }
 };
 
-/// The tracker nodelet's own parameters (read once at start-up) and those its reconfigure servers write
-/// besides the plugins' (state_model/acceleration_noise). track_bag --config ignores them.
+/// The tracker nodelet's own parameters (read once at start-up). track_bag --config ignores them.
 extern const std::vector<std::string> kRosRuntimeParameters;
 
 /// One message per parameter of `params` that no component asked for once a Tracker was built from it
@@ -70,6 +71,12 @@ public:
                                                const Parameters& params);
   std::shared_ptr<ObservationModel> createObservationModel(const std::string& type, const std::string& name,
                                                            const Parameters& params);
+
+  /// The parameter table of a plugin of type `type` named `component` ("state_model" or a cue's name), as its
+  /// getters declare it when a throwaway instance reads `params` (a copy: `params` is not touched); the parameters
+  /// its reconfigure() reads again are marked reconfigurable. Works for any plugin, a third party's too.
+  std::vector<ParameterSpec> pluginTable(const std::string& type, const std::string& component,
+                                         const Parameters& params);
 
 private:
   std::unique_ptr<pluginlib::ClassLoader<StateModel>> state_loader_;

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Turning four synchronised messages (left/right image + camera_info) into a validated, rectified
 // StereoFrame, or into a drop reason. ROS messages in, engine types out; no node handle, so it is
 // unit-testable and shared by the nodelet and tests.

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Building the tracker's output messages from engine results: the estimate (point, pose, TF), the
 // particle cloud with a weight field, and the rviz markers (estimate sphere, covariance ellipsoid,
 // recent trajectory). Message construction only; publishing stays in the nodelet.

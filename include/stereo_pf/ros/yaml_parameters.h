@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Filling the ROS-free Parameters tree from YAML (config files, command-line overrides).
 #pragma once
 

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // The ballistic and random-walk trajectories of synthetic scenes (see scene.h, scene_detail.h). Both are
 // closed forms of t, so frame k never depends on which frames were rendered before.
 #include <cmath>

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Boxes and cylinders in synthetic scenes: ray casting, exact silhouette extents, patterns and drawing
 // (see scene.h, scene_detail.h).
 #include <algorithm>

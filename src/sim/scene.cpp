@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Synthetic stereo scenes: YAML loading and a per-pixel ray-casting renderer (see scene.h).
 #include "stereo_pf/core/scene.h"
 #include "stereo_pf/core/scene_sensor.h"

@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Private helpers of the scene renderer (not installed): ray casting and silhouettes of boxes and
 // cylinders, the texture pattern (scene_shapes.cpp), and the ballistic and random-walk trajectories
 // (trajectory.cpp). scene.cpp dispatches to them; they know nothing of YAML.

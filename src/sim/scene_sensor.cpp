@@ -1,3 +1,5 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
 // Camera sensor model and image encodings of the synthetic scenes (see scene_sensor.h), and the part of
 // SceneRenderer (scene.h) that applies them to each view: exposure (motion blur), then the sensor.
 #include "stereo_pf/core/scene_sensor.h"
