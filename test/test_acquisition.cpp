@@ -213,6 +213,18 @@ std::shared_ptr<Plugin> plugin(const std::string& name)
   m->initialize(name, stereo_pf::Parameters());
   return m;
 }
+
+// Frame k of `renderer` with its stamp, rendered into `left`/`right` (kept alive by the caller).
+StereoFrame renderFrame(SceneRenderer& renderer, int k, cv::Mat& left, cv::Mat& right)
+{
+  renderer.render(k, left, right);
+  StereoFrame f;
+  f.left = left;
+  f.right = right;
+  f.geometry = renderer.geometry();
+  f.stamp = renderer.stamp(k);
+  return f;
+}
 }  // namespace
 
 TEST(Tracking, NoDepthBiasFromTheObjectsSize)
@@ -235,15 +247,7 @@ TEST(Tracking, NoDepthBiasFromTheObjectsSize)
                           plugin<ColourContour>("colour_contour") },
                         EngineConfig());
     cv::Mat l, r;
-    auto frame = [&](int k) {
-      renderer.render(k, l, r);
-      StereoFrame f;
-      f.left = l;
-      f.right = r;
-      f.geometry = renderer.geometry();
-      f.stamp = renderer.stamp(k);
-      return f;
-    };
+    auto frame = [&](int k) { return renderFrame(renderer, k, l, r); };
     std::string error;
     ASSERT_TRUE(engine.learnTarget(frame(0), renderer.targetRoi(0), error)) << error;
     EXPECT_NEAR(engine.targetRadius(), radius, 0.03 * radius);
@@ -286,15 +290,7 @@ TEST(Tracking, ABallThrownAtTheCameraIsFollowedByTheLocalSearch)
                           plugin<ColourContour>("colour_contour") },
                         c);
     cv::Mat l, r;
-    auto frame = [&](int k) {
-      renderer.render(k, l, r);
-      StereoFrame f;
-      f.left = l;
-      f.right = r;
-      f.geometry = renderer.geometry();
-      f.stamp = renderer.stamp(k);
-      return f;
-    };
+    auto frame = [&](int k) { return renderFrame(renderer, k, l, r); };
     std::string error;
     EXPECT_TRUE(engine.learnTarget(frame(0), renderer.targetRoi(0), error)) << error;
     double sum2 = 0.0;

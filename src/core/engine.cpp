@@ -508,7 +508,8 @@ void FilterEngine::respawn(const StereoGeometry& geometry, int set, int count, d
   p.weights.head(count).setConstant((arrival ? config_.jump_weight : 1.0) / n);
   // The local search's pairs (the last local_proposals_ of the proposals) are where the object's own image
   // motion leads: they count as much as a predicted particle.
-  for (int i = std::max(0, proposed - local_proposals_); i < proposed; ++i)
+  const int first_local = static_cast<int>(proposals_.size()) - local_proposals_;
+  for (int i = std::max(0, first_local); i < proposed; ++i)
     p.weights[i] = 1.0 / n;
   p.weights /= p.weights.sum();
 }
@@ -603,6 +604,12 @@ void FilterEngine::prepareProposals(const StereoGeometry& g, int count, const St
   }
 }
 
+bool FilterEngine::anyNonRefiningCue() const
+{
+  return std::any_of(observation_models_.begin(), observation_models_.end(),
+                     [](const std::shared_ptr<ObservationModel>& m) { return m->enabled() && !m->refine(); });
+}
+
 int FilterEngine::proposeLocally(const StereoGeometry& geometry, int count)
 {
   if (count <= 0 || track_known_ < 1 || !(track_disparity_[0] > 0.0))
@@ -619,8 +626,7 @@ int FilterEngine::proposeLocally(const StereoGeometry& geometry, int count)
   }
   // The evidence cues while tracking (not the refining ones, which need a region to refine, nor those comparing
   // the two views): the sum of their log-likelihoods, their mean similarity.
-  const bool others = std::any_of(observation_models_.begin(), observation_models_.end(),
-                                  [](const std::shared_ptr<ObservationModel>& m) { return m->enabled() && !m->refine(); });
+  const bool others = anyNonRefiningCue();
   auto score = [&](const ImageHypotheses& hyp, Eigen::VectorXd& ll, Eigen::VectorXd& sim) {
     int cues = 0;
     for (auto& m : observation_models_)
@@ -637,7 +643,6 @@ int FilterEngine::proposeLocally(const StereoGeometry& geometry, int count)
     if (cues > 0)
       sim /= cues;
   };
-  local_proposals_ = 0;
   const LocalMatch match = local_search_.search(track, geometry.width(), geometry.height(), score);
   // A match the evidence would call unseen proposes nothing (an object growing or turning beyond what its
   // template knows still scores above that while it is in view).
@@ -932,8 +937,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
   // clutter of that colour too). A refining cue alone could never find the object: without another enabled
   // cue it is an ordinary one.
   const bool tracking = state_ == TrackState::Tracking;
-  const bool others = std::any_of(observation_models_.begin(), observation_models_.end(),
-                                  [](const std::shared_ptr<ObservationModel>& m) { return m->enabled() && !m->refine(); });
+  const bool others = anyNonRefiningCue();
   auto refining = [others](const ObservationModel& m) { return others && m.refine(); };
   auto active = [&](const ObservationModel& m) {
     return m.enabled() && (tracking || !m.onlyWhileTracking()) &&

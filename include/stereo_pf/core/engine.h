@@ -200,8 +200,11 @@ private:
   void prepareProposals(const StereoGeometry& geometry, int count, const StateEstimate* near);
   static constexpr double kDisparityReach = 1.5;
   /// While tracking: run the local search near the last estimates' image track and append `count` pairs around
-  /// its match to the proposals (none when it finds nothing the evidence cues call seen); returns how many.
+  /// its match to the proposals (none when the evidence cues score its best match below lost_similarity);
+  /// returns how many.
   int proposeLocally(const StereoGeometry& geometry, int count);
+  /// True when an enabled cue is not a refining one (refining cues then come second, after the others).
+  bool anyNonRefiningCue() const;
   /// After a step: keep the tracking estimate's image position, disparity and apparent size for proposeLocally().
   void rememberTrack();
   /// Draw every set around the acquired point (acquisition_): its left pixel jittered by a fraction of the apparent
