@@ -315,6 +315,89 @@ TEST(Tracking, ABallThrownAtTheCameraIsFollowedByTheLocalSearch)
   EXPECT_GT(walk, 2.0 * local) << "without it " << walk << " (worst " << worst_walk << ")";
 }
 
+namespace
+{
+// The default cues (colour, template, outline) and Position3D, as the tracker loads them.
+stereo_pf::FilterEngine defaultEngine()
+{
+  using namespace stereo_pf;
+  return FilterEngine(plugin<Position3D>("state_model"),
+                      { plugin<ColourHSI>("colour"), plugin<TemplateMatch>("template"),
+                        plugin<ColourContour>("colour_contour") },
+                      EngineConfig());
+}
+}  // namespace
+
+TEST(CueTrust, ACueTheBackgroundMatchesAsWellAsTheObjectIsNotTrusted)
+{
+  // A disc of grey noise in front of grey noise of the same distribution, mono8: its intensity histogram is the
+  // background's, and it has no outline of a colour, but its pattern (the template) is its own.
+  using namespace stereo_pf;
+  const int width = 320, height = 240;
+  const double fx = 300.0, baseline = 0.12, z = 1.5, radius = 0.06;
+  const double disparity = fx * baseline / z, r_px = fx * radius / z;
+  cv::RNG rng(7);
+  cv::Mat l(height, width, CV_8UC1), r(height, width, CV_8UC1), pattern(height, width, CV_8UC1);
+  rng.fill(l, cv::RNG::UNIFORM, 0, 256);
+  rng.fill(r, cv::RNG::UNIFORM, 0, 256);
+  rng.fill(pattern, cv::RNG::UNIFORM, 0, 256);
+  for (cv::Mat* m : { &l, &r, &pattern })
+    cv::GaussianBlur(*m, *m, cv::Size(0, 0), 1.5);
+  cv::normalize(l, l, 0, 255, cv::NORM_MINMAX);
+  cv::normalize(r, r, 0, 255, cv::NORM_MINMAX);
+  cv::normalize(pattern, pattern, 0, 255, cv::NORM_MINMAX);
+  const cv::Point at(180, 110);
+  cv::Mat disc = cv::Mat::zeros(height, width, CV_8UC1);
+  cv::circle(disc, at, static_cast<int>(r_px), cv::Scalar(255), cv::FILLED);
+  pattern.copyTo(l, disc);
+  // The right view sees the same disc `disparity` pixels to the left.
+  const cv::Mat shift = (cv::Mat_<double>(2, 3) << 1, 0, -disparity, 0, 1, 0);
+  cv::Mat pattern_right, disc_right;
+  cv::warpAffine(pattern, pattern_right, shift, pattern.size());
+  cv::warpAffine(disc, disc_right, shift, disc.size(), cv::INTER_NEAREST);
+  pattern_right.copyTo(r, disc_right);
+  StereoFrame f;
+  f.left = l;
+  f.right = r;
+  f.geometry = StereoGeometry(fx, fx, width / 2.0, height / 2.0, baseline, width, height);
+  const cv::Rect box(at.x - static_cast<int>(r_px), at.y - static_cast<int>(r_px), 2 * static_cast<int>(r_px) + 1,
+                     2 * static_cast<int>(r_px) + 1);
+  FilterEngine engine = defaultEngine();
+  std::string error;
+  ASSERT_TRUE(engine.learnTarget(f, box, error)) << error;
+  const std::vector<double>& trust = engine.cueTrust();
+  ASSERT_EQ(trust.size(), 3u);
+  std::cout << "[ figures  ] trust colour " << trust[0] << ", template " << trust[1] << ", outline " << trust[2]
+            << "\n";
+  EXPECT_LT(trust[0], 0.2);
+  EXPECT_GT(trust[1], 0.8);
+  EXPECT_LT(trust[2], 0.5);
+
+  // The trust is part of the target: saved with it and restored by loading it.
+  const std::string path = testing::TempDir() + "/cue_trust_target.yaml";
+  ASSERT_TRUE(engine.saveTarget(path, error)) << error;
+  FilterEngine other = defaultEngine();
+  ASSERT_TRUE(other.loadTarget(path, error)) << error;
+  for (size_t k = 0; k < trust.size(); ++k)
+    EXPECT_NEAR(other.cueTrust()[k], trust[k], 1e-9) << "cue " << k;
+}
+
+TEST(CueTrust, InColourEveryDefaultCueIsTrusted)
+{
+  // An orange ball in front of the same clutter, in colour: every cue tells it apart.
+  using namespace stereo_pf;
+  cv::Mat l, r;
+  cv::Rect box;
+  const StereoFrame f = render(scene({ ball(0.04, Eigen::Vector3d(0.05, 0.0, 1.3)) }, 2.5, true), l, r, box);
+  FilterEngine engine = defaultEngine();
+  std::string error;
+  ASSERT_TRUE(engine.learnTarget(f, box, error)) << error;
+  std::cout << "[ figures  ] trust colour " << engine.cueTrust()[0] << ", template " << engine.cueTrust()[1]
+            << ", outline " << engine.cueTrust()[2] << "\n";
+  for (double t : engine.cueTrust())
+    EXPECT_GT(t, 0.8);
+}
+
 TEST(TemplateMatch, PeaksAtTheObjectInBothViewsAndSurvivesSaveAndLoad)
 {
   using namespace stereo_pf;

@@ -399,6 +399,7 @@ RefineRun runWithContour(std::shared_ptr<RecordingContour> contour, bool with_co
     f.stamp = renderer.stamp(k);
     if (k == 0)
     {
+      contour->frame = -1;  // learning: the cue trust's measurement, before any frame
       std::string error;
       EXPECT_TRUE(engine.learnTarget(f, renderer.targetRoi(0), error)) << error;
     }

@@ -10,6 +10,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "stereo_pf/core/cue_trust.h"
 #include "stereo_pf/core/resampling.h"
 
 namespace stereo_pf
@@ -18,6 +19,7 @@ namespace
 {
 /// The target file's entry for the size learned with the target.
 const char* const kTargetSizeNode = "target_size";
+const char* const kCueTrustNode = "cue_trust";
 }  // namespace
 
 std::string toString(TrackState state)
@@ -172,6 +174,9 @@ const std::vector<EngineField>& engineFields()
     boolField<&C::acquire>("acquire", false,
                            "learning a target matches its box in the right image and starts the particles there, "
                            "tracking; false: searched for from the prior"),
+    boolField<&C::cue_trust>("cue_trust", true,
+                             "acquisition weighs each cue by how well it told the object from the rest of that frame "
+                             "(a cue the background matches as well as the object gets no weight); false: all equal"),
   };
   return fields;
 }
@@ -212,6 +217,7 @@ FilterEngine::FilterEngine(std::shared_ptr<StateModel> state_model,
   if (observation_models_.empty())
     throw std::invalid_argument("FilterEngine needs at least one observation model");
   rng_.seed(config_.seed);
+  cue_trust_.assign(observation_models_.size(), 1.0);
 }
 
 void FilterEngine::setConfig(const EngineConfig& config)
@@ -296,8 +302,16 @@ bool FilterEngine::learnTarget(const StereoFrame& frame, const cv::Rect& roi, st
     }
   }
   if (!config_.acquire)
+  {
+    cue_trust_.assign(observation_models_.size(), 1.0);
     return true;
+  }
   acquisition_ = match;
+  if (config_.cue_trust)
+    cue_trust_ = measureCueTrust(cache_, observation_models_, match.left, match.right,
+                                 frame.geometry.fx() * match.radius / match.centre.z());
+  else
+    cue_trust_.assign(observation_models_.size(), 1.0);
   target_radius_ = match.radius;
   state_model_->setLearnedRadius(match.radius);
   acquired_.pending = true;
@@ -391,6 +405,10 @@ bool FilterEngine::saveTarget(const std::string& path, std::string& error) const
         m->saveTarget(fs);
     if (target_radius_ > 0.0)
       fs << kTargetSizeNode << "{" << "radius" << target_radius_ << "}";
+    fs << kCueTrustNode << "{";
+    for (size_t k = 0; k < observation_models_.size(); ++k)
+      fs << observation_models_[k]->name() << cue_trust_[k];
+    fs << "}";
     return true;
   }
   catch (const cv::Exception& e)
@@ -413,7 +431,7 @@ bool FilterEngine::loadTarget(const std::string& path, std::string& error)
     // Every model must find its entry before any target changes (a file saved with other cues).
     std::vector<std::string> present, missing;
     for (const auto& node : fs.root())
-      if (node.name() != kTargetSizeNode)
+      if (node.name() != kTargetSizeNode && node.name() != kCueTrustNode)
         present.push_back(node.name());
     for (const auto& m : observation_models_)
       if (fs[m->name()].empty())
@@ -450,6 +468,14 @@ bool FilterEngine::loadTarget(const std::string& path, std::string& error)
       radius = static_cast<double>(size["radius"]);
     target_radius_ = std::isfinite(radius) && radius > 0.0 ? radius : 0.0;
     state_model_->setLearnedRadius(target_radius_);
+    // The cues' trust measured when the target was learned (files without it: every cue trusted).
+    const cv::FileNode trust = fs[kCueTrustNode];
+    for (size_t k = 0; k < observation_models_.size(); ++k)
+    {
+      const cv::FileNode t = trust.empty() ? cv::FileNode() : trust[observation_models_[k]->name()];
+      const double value = !t.empty() && t.isReal() ? static_cast<double>(t) : 1.0;
+      cue_trust_[k] = std::isfinite(value) ? std::clamp(value, 0.0, 1.0) : 1.0;
+    }
     return true;
   }
   catch (const cv::Exception& e)
@@ -524,8 +550,12 @@ void FilterEngine::prepareProposals(const StereoGeometry& g, int count, const St
   // template is not).
   cv::Mat map_left, map_right, one_left, one_right;
   bool have = false;
-  for (auto& m : observation_models_)
-    if (m->enabled() && m->targetMap(cache_, View::Left, one_left) && m->targetMap(cache_, View::Right, one_right))
+  for (size_t k = 0; k < observation_models_.size(); ++k)
+  {
+    ObservationModel& m = *observation_models_[k];
+    // A cue the learning frame showed to match the background as well as the object has no say (cueTrust()).
+    if (m.enabled() && cue_trust_[k] > 0.0 && m.targetMap(cache_, View::Left, one_left) &&
+        m.targetMap(cache_, View::Right, one_right))
     {
       if (!have)
       {
@@ -539,6 +569,7 @@ void FilterEngine::prepareProposals(const StereoGeometry& g, int count, const St
       }
       have = true;
     }
+  }
   if (!have)
     return;
   // Work on 4x4-pixel cells: a CDF over 20k cells instead of 300k pixels, and averaging suppresses
@@ -628,19 +659,20 @@ int FilterEngine::proposeLocally(const StereoGeometry& geometry, int count)
   // the two views): the sum of their log-likelihoods, their mean similarity.
   const bool others = anyNonRefiningCue();
   auto score = [&](const ImageHypotheses& hyp, Eigen::VectorXd& ll, Eigen::VectorXd& sim) {
-    int cues = 0;
-    for (auto& m : observation_models_)
+    double cues = 0.0;
+    for (size_t k = 0; k < observation_models_.size(); ++k)
     {
-      if (!m->enabled() || m->comparesViews() || (others && m->refine()))
+      ObservationModel& m = *observation_models_[k];
+      if (!m.enabled() || m.comparesViews() || (others && m.refine()))
         continue;
       scratch_ll_.resize(hyp.size());
       scratch_sim_.resize(hyp.size());
-      m->evaluate(cache_, hyp, scratch_ll_, scratch_sim_);
-      ll += m->weight() * scratch_ll_;
-      sim += scratch_sim_;
-      ++cues;
+      m.evaluate(cache_, hyp, scratch_ll_, scratch_sim_);
+      ll += m.weight() * cue_trust_[k] * scratch_ll_;
+      sim += cue_trust_[k] * scratch_sim_;
+      cues += cue_trust_[k];
     }
-    if (cues > 0)
+    if (cues > 0.0)
       sim /= cues;
   };
   const LocalMatch match = local_search_.search(track, geometry.width(), geometry.height(), score);
@@ -804,7 +836,7 @@ bool FilterEngine::backgroundSimilarity(int s, int best, IsEvidence is_evidence,
   background_sum_.setZero(count);
   background_ll_.resize(count);
   background_sim_.resize(count);
-  int cues = 0;
+  double cues = 0.0;
   for (const ImageHypotheses& h : views)
   {
     background_hyp_.view = h.view;
@@ -816,16 +848,16 @@ bool FilterEngine::backgroundSimilarity(int s, int best, IsEvidence is_evidence,
       background_hyp_.radius[j] = h.radius[best];
       background_hyp_.valid[j] = 1;
     }
-    for (auto& model : observation_models_)
+    for (size_t k = 0; k < observation_models_.size(); ++k)
     {
-      if (!is_evidence(*model))
+      if (!is_evidence(*observation_models_[k]) || !(cue_trust_[k] > 0.0))
         continue;
-      model->evaluate(cache_, background_hyp_, background_ll_, background_sim_);
-      background_sum_ += background_sim_;
-      ++cues;
+      observation_models_[k]->evaluate(cache_, background_hyp_, background_ll_, background_sim_);
+      background_sum_ += cue_trust_[k] * background_sim_;
+      cues += cue_trust_[k];
     }
   }
-  if (cues == 0)
+  if (!(cues > 0.0))
     return false;
   std::vector<double> values(background_sum_.data(), background_sum_.data() + count);
   auto mid = values.begin() + count / 2;
@@ -835,7 +867,7 @@ bool FilterEngine::backgroundSimilarity(int s, int best, IsEvidence is_evidence,
 }
 
 template <class Take>
-int FilterEngine::observe(const StereoGeometry& geometry, int s, Take take)
+double FilterEngine::observe(const StereoGeometry& geometry, int s, Take take)
 {
   ParticleSet& p = sets_[s];
   const ImageHypotheses* left = nullptr;
@@ -845,13 +877,15 @@ int FilterEngine::observe(const StereoGeometry& geometry, int s, Take take)
     state_model_->project(geometry, s, p, hyp);
     (hyp.view == View::Left ? left : right) = &hyp;
   }
-  int cues = 0;
-  for (auto& model : observation_models_)
+  double cues = 0.0;
+  for (size_t k = 0; k < observation_models_.size(); ++k)
   {
+    ObservationModel* model = observation_models_[k].get();
     const Use use = take(*model);
-    if (!(use.weight > 0.0))
+    const double trust = cue_trust_[k];
+    if (!(use.weight > 0.0) || !(trust > 0.0))
       continue;
-    const double weight = use.weight * model->weight();
+    const double weight = use.weight * model->weight() * trust;
     if (model->comparesViews())
     {
       // Scores the agreement of a particle's two images: only for sets seen in both, and not evidence.
@@ -868,8 +902,8 @@ int FilterEngine::observe(const StereoGeometry& geometry, int s, Take take)
       p.log_weights += weight * scratch_ll_;
       if (use.evidence)
       {
-        sum_sim_ += scratch_sim_;
-        ++cues;
+        sum_sim_ += trust * scratch_sim_;
+        cues += trust;
       }
     }
   }
@@ -962,7 +996,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     sum_sim_.setZero(n);
     scratch_ll_.resize(n);
     scratch_sim_.resize(n);
-    const int cues = observe(geometry, s, [&](const ObservationModel& m) {
+    const double cues = observe(geometry, s, [&](const ObservationModel& m) {
       if (!active(m) || (two_stage && refining(m)))
         return Use{};
       return refining(m) ? Use{ config_.refine_search_weight, false } : Use{ 1.0, true };
@@ -971,11 +1005,11 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     // Evidence that the object is seen: the best particle's mean similarity over cues and views; for
     // several sets (left and right images) the object must be seen in all of them.
     Eigen::Index best_index = -1;
-    const double best = cues > 0 ? sum_sim_.maxCoeff(&best_index) / cues : 0.0;
+    const double best = cues > 0.0 ? sum_sim_.maxCoeff(&best_index) / cues : 0.0;
     evidence = std::min(evidence, best);
     // ... and not by the background alike: the same cues at places beside the best particle.
     double background = 0.0;
-    if (cues > 0 && backgroundSimilarity(s, static_cast<int>(best_index), is_evidence, background))
+    if (cues > 0.0 && backgroundSimilarity(s, static_cast<int>(best_index), is_evidence, background))
     {
       background_measured = true;
       if (best - background < contrast)

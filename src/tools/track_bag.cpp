@@ -254,6 +254,13 @@ public:
     if (a.ok && !quiet_)
       std::printf("acquired: disparity %.2f px (score %.2f), centre (%.3f, %.3f, %.3f) m, radius %.2f cm\n",
                   a.disparity, a.score, a.centre.x(), a.centre.y(), a.centre.z(), 100.0 * a.radius);
+    if (a.ok && !quiet_)
+    {
+      std::printf("cue trust:");
+      for (size_t k = 0; k < engine().observationModels().size(); ++k)
+        std::printf(" %s %.2f", engine().observationModels()[k]->name().c_str(), engine().cueTrust()[k]);
+      std::printf("\n");
+    }
     if (!save_target_.empty() && !engine().saveTarget(save_target_, error))
       throw std::runtime_error(error);
     return true;

@@ -103,6 +103,9 @@ struct EngineConfig
   /// size from it, and start the particles around that 3D point, tracking. False: the thesis's start, the
   /// particles spread over the viewing volume and searching (the size then comes from `object_radius`).
   bool acquire = true;
+  /// Acquisition also measures each cue's trust (measureCueTrust): how well it told the object from the rest of
+  /// that frame; a cue's weight and its share of the evidence are scaled by it. False: every cue trusted.
+  bool cue_trust = true;
 
   /// Read from `params` (missing keys keep their defaults); throws ParameterError.
   static EngineConfig fromParameters(const Parameters& params);
@@ -187,6 +190,10 @@ public:
   double targetRadius() const { return target_radius_; }
   /// The last successful acquisition's match (BoxMatch::ok false before any).
   const BoxMatch& acquisition() const { return acquisition_; }
+  /// Each observation model's trust (same order as observationModels()): how well it told the object from the
+  /// frame it was learned on (measureCueTrust); its weight and its share of the evidence are scaled by it. All 1
+  /// before a target, for a target learned without acquisition, or loaded from a file that has none.
+  const std::vector<double>& cueTrust() const { return cue_trust_; }
 
 private:
   void applyPending();
@@ -220,7 +227,7 @@ private:
   /// Give the particles of set `s` whose hypotheses leave the viewing volume zero weight (log-weight -inf);
   /// returns how many are inside.
   int boundToViewingVolume(int s);
-  /// Median similarity of the evidence cues (`is_evidence`) at background locations along the rows of particle
+  /// Median trust-weighted mean similarity of the evidence cues (`is_evidence`) at background locations along the rows of particle
   /// `best` of set `s` (its hypotheses shifted sideways, away from it); false when too few locations fit.
   template <class IsEvidence>
   bool backgroundSimilarity(int s, int best, IsEvidence is_evidence, double& background);
@@ -235,9 +242,10 @@ private:
     bool evidence = false;
   };
   /// Project set `s` and add to its log-weights the log-likelihoods of the models as `take(model)` (a Use)
-  /// says; returns the number of per-view cue evaluations added to sum_sim_ (comparesViews models: none).
+  /// says; returns the total trust of the per-view cue evaluations added to sum_sim_ (each added times its
+  /// model's trust; comparesViews models: none).
   template <class Take>
-  int observe(const StereoGeometry& geometry, int s, Take take);
+  double observe(const StereoGeometry& geometry, int s, Take take);
 
   std::shared_ptr<StateModel> state_model_;
   std::vector<std::shared_ptr<ObservationModel>> observation_models_;
@@ -277,6 +285,7 @@ private:
   };
   Acquired acquired_;
   BoxMatch acquisition_;
+  std::vector<double> cue_trust_;  ///< per observation model, see cueTrust()
   double target_radius_ = 0.0;
 
   // detection-driven proposals of this frame: (left pixel, right pixel) pairs
