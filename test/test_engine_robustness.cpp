@@ -233,10 +233,11 @@ TEST(EngineBounds, ASetOutsideTheViewingVolumeIsLostAndRedrawnFromThePrior)
   Scene scene("pendulum_uncluttered.yaml");
   auto state = std::make_shared<Escaping>();
   state->initialize("state_model", Parameters());
-  // Without the recovery proposals, which would put a share of the set back at the object and so keep it
-  // from leaving the volume whole: this is the path for a set that does.
+  // Without the recovery proposals and the local search, which would put a share of the set back at the object
+  // and so keep it from leaving the volume whole: this is the path for a set that does.
   EngineConfig config;
   config.tracking_respawn_fraction = 0.0;
+  config.local_fraction = 0.0;
   FilterEngine engine(state, defaultCues(), config);
   std::string error;
   ASSERT_TRUE(engine.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
@@ -376,14 +377,19 @@ public:
 };
 
 /// Frames after a lock planted 25 cm beside the pendulum's ball until the estimate is back within 3 cm of it
-/// (-1: not within 15 frames), and whether the track was declared lost meanwhile.
-int framesToLeaveAPlantedLock(double tracking_respawn_fraction, bool& lost)
+/// (-1: not within 15 frames), and whether the track was declared lost meanwhile; `searches`: with the recovery
+/// proposals and the local search as configured by default, else with neither.
+int framesToLeaveAPlantedLock(bool searches, bool& lost)
 {
   Scene scene("pendulum_uncluttered.yaml");
   auto state = std::make_shared<Planting>();
   state->initialize("state_model", Parameters());
   EngineConfig config;
-  config.tracking_respawn_fraction = tracking_respawn_fraction;
+  if (!searches)
+  {
+    config.tracking_respawn_fraction = 0.0;
+    config.local_fraction = 0.0;
+  }
   FilterEngine engine(state, { cue<ColourHSI>("colour"), cue<ColourContour>("colour_contour") }, config);
   std::string error;
   EXPECT_TRUE(engine.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
@@ -410,17 +416,18 @@ int framesToLeaveAPlantedLock(double tracking_respawn_fraction, bool& lost)
 
 TEST(EngineRecovery, APlantedWrongLockIsLeftForTheObjectWithoutLosingTheTrack)
 {
-  // The recovery proposals (tracking_respawn_fraction) keep a share of the set where the cues see the target:
-  // the planted cloud sees only background, those particles take the weight, and the track goes on.
+  // The recovery proposals (tracking_respawn_fraction) and the local search (local_fraction) keep a share of the
+  // set where the cues see the target: the planted cloud sees only background, those particles take the weight,
+  // and the track goes on.
   bool lost = true;
-  const int with = framesToLeaveAPlantedLock(EngineConfig().tracking_respawn_fraction, lost);
+  const int with = framesToLeaveAPlantedLock(true, lost);
   EXPECT_GE(with, 1);
   EXPECT_LE(with, 3) << "frames to leave the planted lock";
   EXPECT_FALSE(lost) << "the track was declared lost although the object stayed in view";
   // Without them the filter has to lose the track first and search again.
-  const int without = framesToLeaveAPlantedLock(0.0, lost);
-  std::printf("planted lock left after %d frame(s) with the recovery proposals, %d without (-1: not in 15)\n", with,
-              without);
+  const int without = framesToLeaveAPlantedLock(false, lost);
+  std::printf("planted lock left after %d frame(s) with the recovery and local search, %d without (-1: not in 15)\n",
+              with, without);
   EXPECT_TRUE(without == -1 || without > with) << without;
   EXPECT_TRUE(without == -1 || lost);
 }

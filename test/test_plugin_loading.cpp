@@ -109,14 +109,14 @@ TEST(PluginLoading, ConfigurationBuildsTheListedModelsWithTheirParameters)
   EXPECT_DOUBLE_EQ(models[1]->weight(), 0.5);
 }
 
-// Without a list: the colour histogram, the grey-level template and the colour outline (a refining cue), each
+// Without a list: Velocity3D and the colour histogram, the grey-level template and the colour outline (a refining cue), each
 // under its own namespace; the `refine` switch is a common parameter of every cue.
 TEST(PluginLoading, DefaultCuesAreTheColourHistogramTheTemplateAndTheOutline)
 {
   Parameters p;
   loadYamlString("colour_contour: {sigma: 0.08}\nstereo_cue: {refine: false}\n", p);
   Tracker tracker(p);
-  EXPECT_EQ(tracker.pluginTypes(), (std::vector<std::string>{ "stereo_pf/Position3D", "stereo_pf/ColourHSI",
+  EXPECT_EQ(tracker.pluginTypes(), (std::vector<std::string>{ "stereo_pf/Velocity3D", "stereo_pf/ColourHSI",
                                                                "stereo_pf/TemplateMatch", "stereo_pf/ColourContour" }));
   const auto& models = tracker.engine().observationModels();
   ASSERT_EQ(models.size(), 3u);

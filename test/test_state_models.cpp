@@ -474,6 +474,7 @@ TEST(Engine, RefiningCueAloneIsAnOrdinaryCue)
   contour->initialize("colour_contour", Parameters());
   EngineConfig config;
   config.particles = 500;
+  config.local_fraction = 0.0;  // the local search scores its own grid with the cue: batches of its own
   const RefineRun run = runWithContour(contour, false, 3, config);
   // Every frame, searching included, and its similarity is the evidence (so it also scores the background
   // check's few places: batches other than the particles').

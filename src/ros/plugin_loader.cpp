@@ -95,7 +95,7 @@ Tracker::Tracker(const Parameters& params)
         std::make_unique<pluginlib::ClassLoader<ObservationModel>>("stereo_pf", "stereo_pf::ObservationModel"))
 {
   const Parameters state_params = params.sub("state_model");
-  const std::string state_type = state_params.getString("type", "stereo_pf/Position3D");
+  const std::string state_type = state_params.getString("type", "stereo_pf/Velocity3D");
   std::shared_ptr<StateModel> state = createStateModel(state_type, "state_model", state_params);
   types_.push_back(state_type);
 

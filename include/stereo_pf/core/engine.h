@@ -71,8 +71,8 @@ struct EngineConfig
   /// While Tracking: the share of each set moved every frame around where the local search (LocalSearch) finds
   /// the object near the position its last image motion predicts, at its present apparent size (what lets a
   /// fast or approaching object be followed), with the same prior weight and arrival velocity as the recovery
-  /// search's. 0: no local search (the default until it holds on the stress corpus: see docs/stress.md).
-  double local_fraction = 0.0;
+  /// search's. 0: no local search.
+  double local_fraction = 0.1;
   /// Share of the redrawn particles proposed from the observation models' target maps (a left pixel drawn
   /// where the target's appearance is, a right pixel along the same row), the rest from the prior.
   double proposal_fraction = 0.5;

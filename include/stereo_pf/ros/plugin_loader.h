@@ -48,7 +48,7 @@ class Tracker
 {
 public:
   /// Read the configuration:
-  ///   state_model: {type: stereo_pf/Position3D, ...its parameters}        (default Position3D)
+  ///   state_model: {type: stereo_pf/Position3D, ...its parameters}        (default Velocity3D)
   ///   observation_models: [{name: colour, type: stereo_pf/ColourHSI}, ...] (default kDefaultObservationModels)
   ///   <name>: {...each observation model's parameters}
   ///   engine: {particles, seed, resample_threshold, estimator, ...}
