@@ -11,7 +11,7 @@
 
 #include "stereo_pf/core/acquisition.h"
 #include "stereo_pf/core/engine.h"
-#include "stereo_pf/core/scene.h"
+#include "stereo_pf/sim/scene.h"
 #include "stereo_pf/plugins/colour_contour.h"
 #include "stereo_pf/plugins/colour_hsi.h"
 #include "stereo_pf/plugins/position_3d.h"

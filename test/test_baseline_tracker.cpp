@@ -12,8 +12,8 @@
 
 #include <opencv2/imgproc.hpp>
 
-#include "stereo_pf/core/baseline_tracker.h"
-#include "stereo_pf/core/scene.h"
+#include "stereo_pf/eval/baseline_tracker.h"
+#include "stereo_pf/sim/scene.h"
 
 using stereo_pf::BaselineEstimate;
 using stereo_pf::BaselineType;

@@ -179,10 +179,10 @@ def main():
         raise Failure("(b) make install wrote outside the install prefix %s: %s" % (configured.group(1), outside[:5]))
     inc = os.path.join(prefix, "include", "stereo_pf")
     for h in ("observation_model.h", "state_model.h", "core/engine.h", "core/feature_cache.h",
-              "plugins/colour_hsi.h", "TrackStatus.h"):
+              "plugins/colour_hsi.h", "plugins/stereo_coupling.h", "TrackStatus.h"):
         if not os.path.isfile(os.path.join(inc, h)):
             raise Failure("(b) the public header %s is not installed under %s" % (h, inc))
-    for h in ("ros/tracker_nodelet.h", "ros/stereo_input.h", "core/scene.h", "core/baseline_tracker.h"):
+    for h in ("ros/stereo_input.h", "sim/scene.h", "sim/scene_sensor.h", "eval/evaluation.h", "eval/baseline_tracker.h"):
         if os.path.exists(os.path.join(inc, h)):
             raise Failure("(b) the private header %s is installed under %s" % (h, inc))
     install_setup = "source %s/setup.bash" % prefix

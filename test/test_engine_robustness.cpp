@@ -12,7 +12,7 @@
 #include <unistd.h>
 
 #include "stereo_pf/core/engine.h"
-#include "stereo_pf/core/scene.h"
+#include "stereo_pf/sim/scene.h"
 #include "stereo_pf/core/viewing_volume.h"
 #include "stereo_pf/plugins/colour_contour.h"
 #include "stereo_pf/plugins/colour_hsi.h"

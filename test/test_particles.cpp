@@ -7,7 +7,7 @@
 #include <limits>
 
 #include "stereo_pf/core/estimators.h"
-#include "stereo_pf/core/evaluation.h"
+#include "stereo_pf/eval/evaluation.h"
 #include "stereo_pf/core/resampling.h"
 
 using namespace stereo_pf;

@@ -13,7 +13,7 @@
 
 #include <opencv2/core.hpp>
 
-#include "stereo_pf/core/scene.h"
+#include "stereo_pf/sim/scene.h"
 
 using stereo_pf::loadScene;
 using stereo_pf::SceneDescription;

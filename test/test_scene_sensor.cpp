@@ -13,8 +13,8 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "stereo_pf/core/scene.h"
-#include "stereo_pf/core/scene_sensor.h"
+#include "stereo_pf/sim/scene.h"
+#include "stereo_pf/sim/scene_sensor.h"
 
 using stereo_pf::encodeImage;
 using stereo_pf::loadScene;

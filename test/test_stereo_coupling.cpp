@@ -17,7 +17,7 @@
 #include <Eigen/Dense>
 
 #include "stereo_pf/core/parameters.h"
-#include "stereo_pf/core/stereo_coupling.h"
+#include "stereo_pf/plugins/stereo_coupling.h"
 #include "stereo_pf/plugins/stereo_constraints.h"
 
 using stereo_pf::CouplingParams;

@@ -12,7 +12,7 @@
 #include "stereo_pf/core/engine.h"
 #include "stereo_pf/core/feature_cache.h"
 #include "stereo_pf/core/parameters.h"
-#include "stereo_pf/core/scene.h"
+#include "stereo_pf/sim/scene.h"
 #include "stereo_pf/plugins/colour_hsi.h"
 #include "stereo_pf/plugins/position_3d.h"
 #include "stereo_pf/plugins/stereo_match.h"

@@ -22,11 +22,11 @@
 #include <opencv2/imgproc.hpp>
 
 #include "stereo_pf/core/engine.h"
-#include "stereo_pf/core/evaluation.h"
+#include "stereo_pf/eval/evaluation.h"
 #include "stereo_pf/core/feature_cache.h"
 #include "stereo_pf/core/histogram.h"
 #include "stereo_pf/core/parameters.h"
-#include "stereo_pf/core/scene.h"
+#include "stereo_pf/sim/scene.h"
 #include "stereo_pf/plugins/colour_hsi.h"
 #include "stereo_pf/plugins/position_3d.h"
 #include "stereo_pf/plugins/shape_circle.h"

@@ -50,14 +50,18 @@ ColourContour::Tunables ColourContour::readTunables() const
 {
   const Parameters& p = params();
   Tunables t;
-  t.sigma = p.getDouble("sigma", 0.05, 0.001, 10.0);
-  t.lines = p.getInt("lines", 16, 4, 256);
-  t.line_half_length = p.getInt("line_half_length", 2, 1, 10);
-  t.softness = p.getDouble("softness", 0.7, 0.1, 10.0);
-  t.target_margin = p.getDouble("target_margin", 0.15, 0.0, 0.45);
-  t.radius = p.getDouble("radius", 0.0, 0.0, 2000.0);
-  t.min_radius = p.getDouble("min_radius", 2.0, 0.5, 1000.0);
-  t.perspective = p.getBool("perspective", true);
+  t.sigma = p.getDouble("sigma", 0.05, 0.001, 10.0,
+                        "log-likelihood -m / (2 sigma^2), m: mean squared difference from the soft step");
+  t.lines = p.getInt("lines", 16, 4, 256, "radial lines across the outline");
+  t.line_half_length = p.getInt("line_half_length", 2, 1, 10, "px (pixel steps) on each side of the outline");
+  t.softness = p.getDouble("softness", 0.7, 0.1, 10.0, "px; width of the expected step 1 / (1 + exp(d / softness))");
+  t.target_margin = p.getDouble("target_margin", 0.15, 0.0, 0.45,
+                                "fraction of the learned box trimmed at each side (target histogram)");
+  t.radius = p.getDouble("radius", 0.0, 0.0, 2000.0,
+                         "px; radius of 2D hypotheses (0: learned from the region of interest)");
+  t.min_radius = p.getDouble("min_radius", 2.0, 0.5, 1000.0, "px; smaller apparent radii are clamped to it");
+  t.perspective = p.getBool("perspective", true,
+                            "3D hypotheses: the sphere's true (elliptical) outline off the optical axis");
   if (t.radius > 0.0 && t.radius < t.min_radius)
     throw ParameterError("parameter '" + scoped(p, "radius") + "' = " + std::to_string(t.radius) +
                          " is below '" + scoped(p, "min_radius") + "' = " + std::to_string(t.min_radius) +

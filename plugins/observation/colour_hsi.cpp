@@ -39,22 +39,17 @@ ColourHSI::Tunables ColourHSI::readTunables() const
 {
   const Parameters& p = params();
   Tunables t;
-  t.sigma = p.getDouble("sigma", 0.15, 0.001, 10.0);
-  t.window = p.getInt("window", 11, 3, 101);
-  if (t.window % 2 == 0)
-    throw ParameterError("parameter '" + (p.prefix().empty() ? std::string() : p.prefix() + "/") + "window' = " +
-                         std::to_string(t.window) + " must be odd (allowed: odd integers in [3, 101])");
-  t.window_scale = p.getDouble("window_scale", 0.7, 0.1, 3.0);
-  t.samples = p.getInt("samples", 11, 3, 31);
-  t.min_radius = p.getDouble("min_radius", 2.0, 0.5, 100.0);
-  t.target_margin = p.getDouble("target_margin", 0.15, 0.0, 0.45);
-  t.surround_scale = p.getDouble("surround_scale", 1.25, 0.0, 4.0);
+  static_cast<HistogramWindowTunables&>(t) = HistogramWindowTunables::fromParameters(p);
+  t.surround_scale = p.getDouble("surround_scale", 1.25, 0.0, 4.0,
+                                 "radius of the ring just outside the object, in apparent radii, that must not look "
+                                 "like the target (0: off, else 1..4)");
   if (t.surround_scale > 0.0 && t.surround_scale < 1.0)
     throw ParameterError("parameter '" + (p.prefix().empty() ? std::string() : p.prefix() + "/") +
                          "surround_scale' = " + std::to_string(t.surround_scale) +
                          " would put the ring inside the object (allowed: 0 = off, or 1..4)");
-  t.surround_samples = p.getInt("surround_samples", 32, 4, 256);
-  t.surround_weight = p.getDouble("surround_weight", 1.0, 0.0, 10.0);
+  t.surround_samples = p.getInt("surround_samples", 32, 4, 256, "points sampled on that ring");
+  t.surround_weight = p.getDouble("surround_weight", 1.0, 0.0, 10.0,
+                                  "weight of the ring's similarity to the target against the hypothesis");
   return t;
 }
 

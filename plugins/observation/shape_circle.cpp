@@ -40,14 +40,16 @@ ShapeCircle::Tunables ShapeCircle::readTunables() const
 {
   const Parameters& p = params();
   Tunables t;
-  t.lines = p.getInt("lines", 16, 3, 256);
-  t.line_half_length = p.getInt("line_half_length", 5, 1, 25);
-  t.sigma = p.getDouble("sigma", 1.5, 0.1, 50.0);
-  t.q0 = p.getDouble("q0", 0.1, 0.001, 0.999);
-  t.edge_threshold = p.getDouble("edge_threshold", 16.0, 0.0, 255.0);
-  t.radius = p.getDouble("radius", 0.0, 0.0, 2000.0);
-  t.min_radius = p.getDouble("min_radius", 3.0, 0.5, 1000.0);
-  t.perspective = p.getBool("perspective", true);
+  t.lines = p.getInt("lines", 16, 3, 256, "radial measurement lines across the circle");
+  t.line_half_length = p.getInt("line_half_length", 5, 1, 25, "px on each side of the circle along each line");
+  t.sigma = p.getDouble("sigma", 1.5, 0.1, 50.0, "px; edge position noise along a measurement line");
+  t.q0 = p.getDouble("q0", 0.1, 0.001, 0.999, "prior that no peak on a line is the contour (eq. 5.10)");
+  t.edge_threshold = p.getDouble("edge_threshold", 16.0, 0.0, 255.0,
+                                 "grey levels; smaller steps along a line are not edge peaks");
+  t.radius = p.getDouble("radius", 0.0, 0.0, 2000.0,
+                         "px; radius of 2D hypotheses (0: learned from the region of interest)");
+  t.min_radius = p.getDouble("min_radius", 3.0, 0.5, 1000.0, "px; smaller apparent radii are clamped to it");
+  t.perspective = p.getBool("perspective", true, "fit the off-axis ball's elliptical silhouette, not a circle");
   return t;
 }
 

@@ -27,13 +27,18 @@ StereoMatch::Tunables StereoMatch::readTunables() const
 {
   const Parameters& p = params();
   Tunables t;
-  t.sigma = p.getDouble("sigma", t.sigma, 0.001, 10.0);
-  t.window_scale = p.getDouble("window_scale", t.window_scale, 0.2, 3.0);
-  t.rows = p.getInt("rows", t.rows, 1, 41);
-  t.column_step = p.getInt("column_step", t.column_step, 1, 20);
-  t.min_contrast = p.getDouble("min_contrast", t.min_contrast, 0.1, 100.0);
-  t.min_radius = p.getDouble("min_radius", t.min_radius, 0.5, 100.0);
-  t.only_while_tracking = p.getBool("only_while_tracking", t.only_while_tracking);
+  t.sigma = p.getDouble("sigma", t.sigma, 0.001, 10.0, "log-likelihood -(1 - ZNCC) / (2 sigma^2)");
+  t.window_scale = p.getDouble("window_scale", t.window_scale, 0.2, 3.0,
+                               "compared disc, in apparent radii (> 1: includes the silhouette)");
+  t.rows = p.getInt("rows", t.rows, 1, 41, "sample rows across the disc");
+  t.column_step = p.getInt("column_step", t.column_step, 1, 20,
+                           "px between samples along a row (whole pixels: one sub-pixel phase)");
+  t.min_contrast = p.getDouble("min_contrast", t.min_contrast, 0.1, 100.0,
+                               "grey levels; floor of each patch's standard deviation");
+  t.min_radius = p.getDouble("min_radius", t.min_radius, 0.5, 100.0, "px; smaller apparent radii are clamped to it");
+  t.only_while_tracking = p.getBool("only_while_tracking", t.only_while_tracking,
+                                    "skipped while searching or lost, where it would reward any textured surface it "
+                                    "can triangulate");
   return t;
 }
 

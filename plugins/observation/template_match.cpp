@@ -21,7 +21,7 @@ const char* const kType = "stereo_pf/TemplateMatch";
 
 void TemplateMatch::onInitialize()
 {
-  size_ = params().getInt("size", size_, 5, 41);
+  size_ = params().getInt("size", size_, 5, 41, "template samples per side");
   tunables_ = readTunables();
   makeWeights();
 }
@@ -30,12 +30,21 @@ TemplateMatch::Tunables TemplateMatch::readTunables() const
 {
   const Parameters& p = params();
   Tunables t;
-  t.ring_scale = p.getDouble("ring_scale", t.ring_scale, 1.0, 3.0);
-  t.ring_weight = p.getDouble("ring_weight", t.ring_weight, 0.0, 1.0);
-  t.sigma = p.getDouble("sigma", t.sigma, 0.001, 10.0);
-  t.adapt_rate = p.getDouble("adapt_rate", t.adapt_rate, 0.0, 1.0);
-  t.adapt_min = p.getDouble("adapt_min", t.adapt_min, -1.0, 1.0);
-  t.anchor = p.getDouble("anchor", t.anchor, 0.0, 1.0);
+  t.ring_scale = p.getDouble("ring_scale", t.ring_scale, 1.0, 3.0,
+                             "the sampled window: the box grown by this (the outline against the surround)");
+  t.ring_weight = p.getDouble("ring_weight", t.ring_weight, 0.0, 1.0,
+                              "weight of that ring (inside the box's ellipse: 1)");
+  t.sigma = p.getDouble("sigma", t.sigma, 0.001, 10.0,
+                        "log-likelihood (c - 1) / sigma, c: weighted ZNCC with the template");
+  t.adapt_rate = p.getDouble("adapt_rate", t.adapt_rate, 0.0, 1.0,
+                             "while tracked and seen, the template follows the object by this much per frame "
+                             "(0: never)");
+  t.adapt_min = p.getDouble("adapt_min", t.adapt_min, -1.0, 1.0,
+                            "the template adapts only when the window at the estimate correlates at least this well "
+                            "with it");
+  t.anchor = p.getDouble("anchor", t.anchor, 0.0, 1.0,
+                         "share of the template in use that is the one learned from the box (the rest: the "
+                         "adapted one)");
   return t;
 }
 

@@ -219,12 +219,13 @@ void TextureEdge::onInitialize()
 {
   const Parameters& p = params();
   EdgeBinning b;
-  b.mode = p.getString("mode", "intensity", { "intensity", "orientation" }) == "intensity" ?
-               EdgeBinning::Mode::Intensity :
-               EdgeBinning::Mode::Orientation;
-  b.intensity_bins = p.getInt("bins", 8, 1, EdgeBinning::kMaxIntensityBins);
-  b.tau = p.getDouble("tau", 24.0, 0.0, 4000.0);
-  b.max_magnitude = p.getDouble("max_magnitude", 400.0, 1e-3, 5000.0);
+  const std::string mode = p.getString("mode", "intensity", { "intensity", "orientation" },
+                                       "intensity: edge-intensity bins; orientation: horizontal/vertical/diagonal "
+                                       "edge counts");
+  b.mode = mode == "intensity" ? EdgeBinning::Mode::Intensity : EdgeBinning::Mode::Orientation;
+  b.intensity_bins = p.getInt("bins", 8, 1, EdgeBinning::kMaxIntensityBins, "edge-intensity bins");
+  b.tau = p.getDouble("tau", 24.0, 0.0, 4000.0, "gradient magnitude below this is not an edge");
+  b.max_magnitude = p.getDouble("max_magnitude", 400.0, 1e-3, 5000.0, "upper end of the edge-intensity bins (> tau)");
   if (!(b.max_magnitude > b.tau))
   {
     const std::string ns = p.prefix().empty() ? "" : p.prefix() + "/";
@@ -242,18 +243,7 @@ void TextureEdge::onInitialize()
 
 TextureEdge::Tunables TextureEdge::readTunables() const
 {
-  const Parameters& p = params();
-  Tunables t;
-  t.sigma = p.getDouble("sigma", 0.15, 0.001, 10.0);
-  t.window = p.getInt("window", 11, 3, 101);
-  if (t.window % 2 == 0)
-    throw ParameterError("parameter '" + (p.prefix().empty() ? std::string() : p.prefix() + "/") + "window' = " +
-                         std::to_string(t.window) + " must be odd (allowed: odd integers in [3, 101])");
-  t.window_scale = p.getDouble("window_scale", 0.7, 0.1, 3.0);
-  t.samples = p.getInt("samples", 11, 3, 31);
-  t.min_radius = p.getDouble("min_radius", 2.0, 0.5, 100.0);
-  t.target_margin = p.getDouble("target_margin", 0.15, 0.0, 0.45);
-  return t;
+  return HistogramWindowTunables::fromParameters(params());
 }
 
 void TextureEdge::applyTunables(const Tunables& t)

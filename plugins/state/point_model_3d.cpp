@@ -9,16 +9,22 @@ namespace stereo_pf
 void PointModel3D::readCommonParameters()
 {
   const Parameters& p = params();
-  noise_ = p.getDouble("noise", 0.04, 0.0, 10.0);
+  noise_ = p.getDouble("noise", 0.04, 0.0, 10.0, "m per frame of random walk");
   // 0: from the camera (StereoGeometry: the depths at which the disparity is the image width and 1 px).
-  z_min_ = p.getDouble("z_min", 0.0, 0.0, 1e6);
-  z_max_ = p.getDouble("z_max", 0.0, 0.0, 1e6);
+  z_min_ = p.getDouble("z_min", 0.0, 0.0, 1e6,
+                       "m; near end of the prior's depth range (0: from the camera, disparity = image width)");
+  z_max_ = p.getDouble("z_max", 0.0, 0.0, 1e6,
+                       "m; far end of the prior's depth range (0: from the camera, disparity = 1 px)");
   if (z_min_ > 0.0 && z_max_ > 0.0 && z_max_ <= z_min_)
     throw ParameterError("parameter '" + p.prefix() + "/z_max' (" + std::to_string(z_max_) + ") must exceed z_min (" +
                          std::to_string(z_min_) + ")");
-  init_depth_ = p.getString("init_depth", "disparity", { "volume", "depth", "disparity" });
-  object_radius_ = p.getDouble("object_radius", 0.0, 0.0, 10.0);
-  size_band_ = p.getDouble("size_band", 0.1, 0.0, 1.0);
+  init_depth_ = p.getString("init_depth", "disparity", { "volume", "depth", "disparity" },
+                            "how the prior spreads depth: uniform in disparity, in volume or in depth");
+  object_radius_ = p.getDouble("object_radius", 0.0, 0.0, 10.0,
+                               "m; radius of the tracked object (0: learned with the target, else 3.5 cm)");
+  size_band_ = p.getDouble("size_band", 0.1, 0.0, 1.0,
+                           "within this fraction of the cloud's mean depth every particle gets that depth's apparent "
+                           "size");
 }
 
 void PointModel3D::depthRange(const StereoGeometry& g, double& z_min, double& z_max) const

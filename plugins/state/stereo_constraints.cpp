@@ -44,18 +44,25 @@ std::vector<int> rowOrder(const ParticleSet& set)
 void StereoConstraints::onInitialize()
 {
   const Parameters& p = params();
-  noise_ = p.getDouble("noise", 18.0, 0.0, 1000.0);
-  epipolar_sigma_ = p.getDouble("epipolar_sigma", 2.0, 0.5, 100.0);
-  max_disparity_ = p.getDouble("max_disparity", 0.0, 0.0, 1e5);
+  noise_ = p.getDouble("noise", 18.0, 0.0, 1000.0, "px per frame of random walk on u and v");
+  epipolar_sigma_ = p.getDouble("epipolar_sigma", 2.0, 0.5, 100.0, "px; soft epipolar constraint (row difference)");
+  max_disparity_ = p.getDouble("max_disparity", 0.0, 0.0, 1e5,
+                               "px; largest disparity of the vergence window (0: from min_depth)");
   if (max_disparity_ > 0.0 && max_disparity_ < 1.0)
     throw ParameterError("parameter '" + (p.prefix().empty() ? "" : p.prefix() + "/") + "max_disparity' = " +
                          p.raw("max_disparity") + " is out of range: 0 (derive from min_depth) or [1, 100000]");
-  min_depth_ = p.getDouble("min_depth", 0.3, 1e-3, 1e3);
-  vergence_softness_ = p.getDouble("vergence_softness", 2.0, 0.5, 100.0);
-  radius_ = p.getDouble("radius", 0.0, 0.0, 1e4);
-  object_radius_ = p.getDouble("object_radius", 0.035, 0.0, 10.0);
-  naive_ = p.getString("coupling", "fast", { "fast", "naive" }) == "naive";
-  density_radius_px_ = p.getDouble("density_radius_px", 10.0, 0.1, 1e4);
+  min_depth_ = p.getDouble("min_depth", 0.3, 1e-3, 1e3,
+                           "m; nearest depth of interest (gives max_disparity when that is 0)");
+  vergence_softness_ = p.getDouble("vergence_softness", 2.0, 0.5, 100.0,
+                                   "px; smoothing of the vergence window's edges");
+  radius_ = p.getDouble("radius", 0.0, 0.0, 1e4,
+                        "px; fixed apparent radius (0: object_radius at the depth both sets agree on)");
+  object_radius_ = p.getDouble("object_radius", 0.035, 0.0, 10.0,
+                               "m; radius of the tracked sphere (0: the observation models' fixed window)");
+  naive_ = p.getString("coupling", "fast", { "fast", "naive" },
+                       "fast: the grid evaluator (StereoCoupling); naive: the O(N^2) reference") == "naive";
+  density_radius_px_ = p.getDouble("density_radius_px", 10.0, 0.1, 1e4,
+                                   "px; radius of the density estimator in the images");
 }
 
 void StereoConstraints::checkSet(int set) const

@@ -15,11 +15,16 @@ void Velocity3D::onInitialize()
   readCommonParameters();
   // Velocity carries the motion, so the position jitter is much smaller than Position3D's walk: by default
   // (noise 0) jitter_radii of the object's radius per frame, so that it follows the object's scale.
-  noise_ = params().getDouble("noise", 0.0, 0.0, 10.0);
-  jitter_radii_ = params().getDouble("jitter_radii", 0.25, 0.0, 10.0);
-  acceleration_noise_ = params().getDouble("acceleration_noise", 12.0, 0.0, 1000.0);
-  initial_speed_ = params().getDouble("initial_speed", 0.3, 0.0, 100.0);
-  max_speed_ = params().getDouble("max_speed", 40.0, 0.01, 1000.0);
+  noise_ = params().getDouble("noise", 0.0, 0.0, 10.0,
+                              "m per frame of extra position jitter (0: jitter_radii of the object's radius)");
+  jitter_radii_ = params().getDouble("jitter_radii", 0.25, 0.0, 10.0,
+                                     "position jitter per frame in object radii, when noise is 0");
+  acceleration_noise_ = params().getDouble("acceleration_noise", 12.0, 0.0, 1000.0,
+                                           "m/s^2; std of the acceleration noise");
+  initial_speed_ = params().getDouble("initial_speed", 0.3, 0.0, 100.0, "m/s; spread of the prior's velocities");
+  max_speed_ = params().getDouble("max_speed", 40.0, 0.01, 1000.0,
+                                  "m/s; each velocity component is clamped to +-max_speed (keeps a diverging "
+                                  "particle finite)");
 }
 
 void Velocity3D::samplePrior(const StereoGeometry& geometry, int set, ParticleSet& particles, int begin, int end,

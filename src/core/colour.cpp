@@ -91,12 +91,16 @@ std::string HsiBinning::describe() const
 HsiBinning HsiBinning::fromParameters(const Parameters& p)
 {
   HsiBinning b;
-  b.hue_bins = p.getInt("hue_bins", 8, 1, 64);
-  b.saturation_bins = p.getInt("saturation_bins", 8, 1, 64);
-  b.intensity_bins = p.getInt("intensity_bins", 4, 1, 64);
-  b.achromatic_saturation = p.getDouble("achromatic_saturation", 0.1, 0.0, 1.0);
-  b.achromatic_intensity = p.getDouble("achromatic_intensity", 0.08, 0.0, 1.0);
-  b.grey_levels = p.getInt("grey_levels", b.intensity_bins, 1, b.hue_bins * b.intensity_bins);
+  b.hue_bins = p.getInt("hue_bins", 8, 1, 64,
+                        "hue bins of the HSI histogram (the three counts' product at most the plugin's maximum)");
+  b.saturation_bins = p.getInt("saturation_bins", 8, 1, 64, "saturation bins of the HSI histogram");
+  b.intensity_bins = p.getInt("intensity_bins", 4, 1, 64, "intensity bins of the HSI histogram");
+  b.achromatic_saturation = p.getDouble("achromatic_saturation", 0.1, 0.0, 1.0,
+                                        "pixels below this saturation go to the achromatic (grey) bins");
+  b.achromatic_intensity = p.getDouble("achromatic_intensity", 0.08, 0.0, 1.0,
+                                       "pixels below this intensity go to the achromatic (grey) bins");
+  b.grey_levels = p.getInt("grey_levels", b.intensity_bins, 1, b.hue_bins * b.intensity_bins,
+                           "intensity slices of the achromatic pixels (at most hue_bins x intensity_bins)");
   if (b.bins() > kMaxBins)
   {
     const std::string ns = p.prefix().empty() ? "" : p.prefix() + "/";

@@ -261,4 +261,22 @@ bool WindowGrid::place(float u, float v, float half, int width, int height, int 
   return nc_ * nr_ >= min_inside;
 }
 
+HistogramWindowTunables HistogramWindowTunables::fromParameters(const Parameters& p)
+{
+  HistogramWindowTunables t;
+  t.sigma = p.getDouble("sigma", t.sigma, 0.001, 10.0,
+                        "Bhattacharyya-distance sigma of the likelihood -(1 - rho) / (2 sigma^2)");
+  t.window = p.getInt("window", t.window, 3, 101, "px, odd; sampling window of hypotheses without a radius");
+  if (t.window % 2 == 0)
+    throw ParameterError("parameter '" + (p.prefix().empty() ? std::string() : p.prefix() + "/") + "window' = " +
+                         std::to_string(t.window) + " must be odd (allowed: odd integers in [3, 101])");
+  t.window_scale = p.getDouble("window_scale", t.window_scale, 0.1, 3.0,
+                               "window half-size as a fraction of the apparent radius");
+  t.samples = p.getInt("samples", t.samples, 3, 31, "samples per window side (constant cost per hypothesis)");
+  t.min_radius = p.getDouble("min_radius", t.min_radius, 0.5, 100.0, "px; smaller apparent radii are clamped to it");
+  t.target_margin = p.getDouble("target_margin", t.target_margin, 0.0, 0.45,
+                                "fraction of the learned box trimmed at each side");
+  return t;
+}
+
 }  // namespace stereo_pf

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // Copyright (c) 2026, stereo_pf developers
-#include "stereo_pf/core/baseline_tracker.h"
+#include "stereo_pf/eval/baseline_tracker.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // Copyright (c) 2026, stereo_pf developers
-#include "stereo_pf/core/evaluation.h"
+#include "stereo_pf/eval/evaluation.h"
 
 #include <algorithm>
 #include <cmath>

@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // Copyright (c) 2026, stereo_pf developers
 // Synthetic stereo scenes: YAML loading and a per-pixel ray-casting renderer (see scene.h).
-#include "stereo_pf/core/scene.h"
-#include "stereo_pf/core/scene_sensor.h"
+#include "stereo_pf/sim/scene.h"
+#include "stereo_pf/sim/scene_sensor.h"
 
 #include <algorithm>
 #include <cmath>

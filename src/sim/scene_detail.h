@@ -12,7 +12,7 @@
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
-#include "stereo_pf/core/scene.h"
+#include "stereo_pf/sim/scene.h"
 
 namespace stereo_pf
 {

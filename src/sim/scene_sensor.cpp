@@ -2,9 +2,9 @@
 // Copyright (c) 2026, stereo_pf developers
 // Camera sensor model and image encodings of the synthetic scenes (see scene_sensor.h), and the part of
 // SceneRenderer (scene.h) that applies them to each view: exposure (motion blur), then the sensor.
-#include "stereo_pf/core/scene_sensor.h"
+#include "stereo_pf/sim/scene_sensor.h"
 
-#include "stereo_pf/core/scene.h"
+#include "stereo_pf/sim/scene.h"
 
 #include <algorithm>
 #include <cmath>

@@ -40,8 +40,8 @@
 #include <sensor_msgs/RegionOfInterest.h>
 #include <std_msgs/Bool.h>
 
-#include "stereo_pf/core/scene.h"
-#include "stereo_pf/core/scene_sensor.h"
+#include "stereo_pf/sim/scene.h"
+#include "stereo_pf/sim/scene_sensor.h"
 
 namespace
 {

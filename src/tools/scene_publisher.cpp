@@ -27,7 +27,7 @@
 #include <sensor_msgs/image_encodings.h>
 #include <std_msgs/Bool.h>
 
-#include "stereo_pf/core/scene.h"
+#include "stereo_pf/sim/scene.h"
 
 namespace
 {

@@ -16,8 +16,8 @@
 
 #include <ros/time.h>
 
-#include "stereo_pf/core/baseline_tracker.h"
-#include "stereo_pf/core/evaluation.h"
+#include "stereo_pf/eval/baseline_tracker.h"
+#include "stereo_pf/eval/evaluation.h"
 #include "stereo_pf/ros/bag_source.h"
 #include "stereo_pf/ros/plugin_loader.h"
 #include "stereo_pf/ros/yaml_parameters.h"

@@ -120,11 +120,12 @@ private:
   void readParameters()
   {
     const stereo_pf::Parameters& p = params();
-    const double sigma = p.getDouble("sigma", 0.05, 0.001, 1.0);
-    const double tolerance = p.getDouble("tolerance", 0.25, 0.01, 1.0);
-    const double window_scale = p.getDouble("window_scale", 0.6, 0.1, 2.0);
-    const int window = p.getInt("window", 11, 3, 101);
-    const double margin = p.getDouble("margin", 0.2, 0.0, 0.45);
+    // The last argument describes the parameter: dynparam and the reconfigure GUIs show it.
+    const double sigma = p.getDouble("sigma", 0.05, 0.001, 1.0, "log-likelihood -d^2 / (2 sigma^2), d: distance");
+    const double tolerance = p.getDouble("tolerance", 0.25, 0.01, 1.0, "similarity 1 - d / tolerance");
+    const double window_scale = p.getDouble("window_scale", 0.6, 0.1, 2.0, "window half-size in apparent radii");
+    const int window = p.getInt("window", 11, 3, 101, "px; window side of hypotheses without a radius");
+    const double margin = p.getDouble("margin", 0.2, 0.0, 0.45, "share of each side of the box left out when learning");
     sigma_ = sigma;
     tolerance_ = tolerance;
     window_scale_ = window_scale;

@@ -10,6 +10,8 @@
 
 #include <opencv2/core.hpp>
 
+#include "stereo_pf/core/parameters.h"
+
 namespace stereo_pf
 {
 /// Histogram with precomputed square roots, for fast Bhattacharyya coefficients against sparse candidates.
@@ -135,6 +137,22 @@ private:
   std::vector<float> offsets_;
   std::vector<int> cols_, rows_;
   int nc_ = 0, nr_ = 0;
+};
+
+/// The settings every histogram cue (ColourHSI, TextureEdge) reads the same way: the likelihood's sigma, where
+/// each hypothesis's window lies and how it is sampled, and the learning box's margin. All reconfigurable.
+struct HistogramWindowTunables
+{
+  double sigma = 0.15;          ///< `sigma`: of the Bhattacharyya log-likelihood
+  int window = 11;              ///< `window`: px, odd; side of the fixed window of 2D hypotheses
+  double window_scale = 0.7;    ///< `window_scale`: half-size of 3D hypotheses' windows, in apparent radii
+  int samples = 11;             ///< `samples`: sample grid points per window side
+  double min_radius = 2.0;      ///< `min_radius`: px; smaller apparent radii are clamped to it
+  double target_margin = 0.15;  ///< `target_margin`: fraction of the learned box trimmed at each side
+
+  /// Read (and declare, with their descriptions) from `params`: throws ParameterError naming the parameter when
+  /// one is out of range or `window` is even.
+  static HistogramWindowTunables fromParameters(const Parameters& params);
 };
 
 /// Bhattacharyya log-likelihood of thesis eq. 5.5 without its constant: -(1 - rho) / (2 sigma^2).

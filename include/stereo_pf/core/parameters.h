@@ -41,7 +41,7 @@ struct ParameterSpec
   std::string default_value;         ///< as text (what the getter falls back to)
   double min = 0.0, max = 0.0;       ///< Int and Double: the allowed range
   std::vector<std::string> allowed;  ///< String: the allowed values (empty: any)
-  std::string description;           ///< what it means (may be empty for a plugin's parameter)
+  std::string description;           ///< what it means (empty when the getter gave none; stereo_pf's own all have one)
   /// Can be changed while running (a reconfigure server offers it). Set by the component's table; for a plugin,
   /// the parameters its reconfigure() reads again.
   bool reconfigurable = false;

@@ -95,14 +95,8 @@ protected:
 
 private:
   /// The tunables (everything that does not change the meaning of a bin).
-  struct Tunables
+  struct Tunables : HistogramWindowTunables
   {
-    double sigma = 0.15;
-    int window = 11;
-    double window_scale = 0.7;
-    int samples = 11;
-    double min_radius = 2.0;
-    double target_margin = 0.15;
     double surround_scale = 1.25;
     int surround_samples = 32;
     double surround_weight = 1.0;

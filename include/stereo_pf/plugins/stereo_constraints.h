@@ -9,7 +9,7 @@
 
 #include <Eigen/Core>
 
-#include "stereo_pf/core/stereo_coupling.h"
+#include "stereo_pf/plugins/stereo_coupling.h"
 #include "stereo_pf/state_model.h"
 
 namespace stereo_pf

@@ -142,15 +142,7 @@ protected:
 
 private:
   /// The tunables (everything that does not change the meaning of a bin).
-  struct Tunables
-  {
-    double sigma = 0.15;
-    int window = 11;
-    double window_scale = 0.7;
-    int samples = 11;
-    double min_radius = 2.0;
-    double target_margin = 0.15;
-  };
+  using Tunables = HistogramWindowTunables;
   Tunables readTunables() const;
   void applyTunables(const Tunables& t);
 

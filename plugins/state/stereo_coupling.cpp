@@ -37,7 +37,7 @@
 // covers only the query particles' bounding box (+ 5 sigma_b) widened by D along x. Clustered (tracking)
 // sets give a grid of a few thousand cells; sets spread over a 640 x 480 image ~3e5 cells. The grid never
 // grows with N; above kMaxGridCells the spacing is widened (lastCoarsening() > 1; error grows as above).
-#include "stereo_pf/core/stereo_coupling.h"
+#include "stereo_pf/plugins/stereo_coupling.h"
 
 #include <algorithm>
 #include <cmath>

@@ -15,7 +15,7 @@
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
 
-#include "stereo_pf/core/scene_sensor.h"
+#include "stereo_pf/sim/scene_sensor.h"
 #include "stereo_pf/core/stereo_geometry.h"
 
 namespace stereo_pf
