@@ -431,3 +431,64 @@ TEST(EngineRecovery, APlantedWrongLockIsLeftForTheObjectWithoutLosingTheTrack)
   EXPECT_TRUE(without == -1 || without > with) << without;
   EXPECT_TRUE(without == -1 || lost);
 }
+
+namespace
+{
+/// The colour histogram whose similarity, once `script` is set, is script[k] at every particle of frame k (the
+/// background places beside the best particle score 0), so the engine's evidence follows the script.
+class Scripted : public ColourHSI
+{
+public:
+  std::vector<double> script;
+  int frame = 0;
+  int particles = 0;
+  void evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
+                Eigen::Ref<Eigen::VectorXd> similarity) override
+  {
+    ColourHSI::evaluate(cache, hyp, log_likelihood, similarity);
+    if (frame >= 0 && frame < static_cast<int>(script.size()))
+      similarity.setConstant(hyp.size() == particles ? script[frame] : 0.0);
+  }
+};
+
+/// The track state after each frame of the pendulum whose evidence follows `script` from frame 10 on.
+std::vector<TrackState> statesUnder(const std::vector<double>& script)
+{
+  Scene scene("pendulum_uncluttered.yaml");
+  auto colour = cue<Scripted>("colour");
+  EngineConfig config;
+  config.local_fraction = 0.0;  // the local search scores batches of its own size
+  colour->particles = config.particles;
+  FilterEngine engine(position3D(), { colour }, config);
+  std::string error;
+  EXPECT_TRUE(engine.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
+  std::vector<TrackState> states;
+  for (int k = 0; k < 10 + static_cast<int>(script.size()); ++k)
+  {
+    colour->frame = k - 10;
+    colour->script = k >= 10 ? script : std::vector<double>{};
+    states.push_back(engine.step(scene.frame(k)).state);
+  }
+  return states;
+}
+}  // namespace
+
+TEST(EngineTrackState, UnsureFramesNeitherCountNorBreakARunOfUnseenOnes)
+{
+  // Evidence flickering between low (0.3 < lost_similarity) and unsure (0.55, between the thresholds): lost at the
+  // third low frame, although no two low frames are adjacent (a track stayed "tracking" metres off a real pitch's
+  // ball that way).
+  const EngineConfig defaults;
+  ASSERT_EQ(defaults.lost_frames, 3);
+  ASSERT_LT(0.3, defaults.lost_similarity);
+  ASSERT_TRUE(0.55 >= defaults.lost_similarity && 0.55 < defaults.found_similarity);
+  ASSERT_GE(0.9, defaults.found_similarity);
+  const std::vector<TrackState> flicker = statesUnder({ 0.3, 0.55, 0.3, 0.55, 0.3, 0.55 });
+  ASSERT_EQ(flicker[9], TrackState::Tracking);
+  EXPECT_EQ(flicker[13], TrackState::Tracking) << "two low frames";
+  EXPECT_EQ(flicker[14], TrackState::Lost) << "the third low frame";
+  // A seen frame (0.9) between them does break the run: the track goes on.
+  const std::vector<TrackState> interrupted = statesUnder({ 0.3, 0.55, 0.3, 0.9, 0.3, 0.55 });
+  for (size_t k = 9; k < interrupted.size(); ++k)
+    EXPECT_EQ(interrupted[k], TrackState::Tracking) << "frame " << k;
+}

@@ -138,8 +138,11 @@ const std::vector<EngineField>& engineFields()
                                       "best mean cue similarity at or above this counts as 'object seen'"),
     doubleField<&C::lost_similarity>("lost_similarity", 0.0, 1.0, true,
                                      "below this counts as 'object not seen' (kept <= found_similarity)"),
-    intField<&C::found_frames>("found_frames", 1, 1000, false, "consecutive seen frames to switch to tracking"),
-    intField<&C::lost_frames>("lost_frames", 1, 1000, false, "consecutive unseen frames to switch to lost"),
+    intField<&C::found_frames>("found_frames", 1, 1000, false,
+                               "seen frames, no unseen one between (unsure ones neither count nor break the run), to "
+                               "switch to tracking"),
+    intField<&C::lost_frames>("lost_frames", 1, 1000, false,
+                              "unseen frames, no seen one between, to switch to lost"),
     doubleField<&C::respawn_fraction>("respawn_fraction", 0.0, 1.0, true,
                                       "fraction of each set redrawn from the prior every frame while not tracking"),
     doubleField<&C::tracking_respawn_fraction>("tracking_respawn_fraction", 0.0, 1.0, false,
@@ -749,10 +752,13 @@ void FilterEngine::updateTrackState(Support support, FrameResult& result)
   }
   else
   {
+    // An unsure frame neither counts towards a run of seen or unseen frames nor breaks it: a track whose evidence
+    // flickers between low and unsure is lost after lost_frames low ones (on a real pitch it stayed "tracking"
+    // metres off the ball because every unsure frame restarted the count).
     const bool seen = support == Support::Seen;
     const bool unseen = support == Support::LowEvidence || support == Support::LikeBackground;
-    seen_count_ = seen ? seen_count_ + 1 : 0;
-    unseen_count_ = unseen ? unseen_count_ + 1 : 0;
+    seen_count_ = seen ? seen_count_ + 1 : unseen ? 0 : seen_count_;
+    unseen_count_ = unseen ? unseen_count_ + 1 : seen ? 0 : unseen_count_;
     if (state_ != TrackState::Tracking && seen_count_ >= config_.found_frames)
       state_ = TrackState::Tracking;
     else if (state_ == TrackState::Tracking && unseen_count_ >= config_.lost_frames)

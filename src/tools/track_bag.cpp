@@ -34,7 +34,8 @@ const char* kUsage =
     "  --target-frame K         (default 0; without --target-roi the bag's ground_truth/target_roi of frame K)\n"
     "  --target-model FILE      load a saved target instead     --save-target FILE   save the learned one\n"
     "  --output CSV             one row per frame: the estimate, its variances and images, ess, state, ms, the\n"
-    "                           evidence and background similarity and what they said (support), the truth\n"
+    "                           evidence and background similarity and what they said (support), the truth;\n"
+    "                           x..szz only while tracking (what the nodelet publishes as valid)\n"
     "  --left-image T --right-image T --left-info T --right-info T --truth T   topic overrides\n"
     "  --rectified              images are already rectified (e.g. stereo_image_proc's image_rect_color)\n"
     "  --quiet                  only the summary line\n"
@@ -269,7 +270,9 @@ public:
   {
     const stereo_pf::FrameResult r = engine().step(frame);
     StepResult s;
-    if (r.estimate.valid)
+    // As the nodelet publishes it: a 3D estimate only while tracking (searching or lost, the cloud's mean is
+    // where the filter looks, not where the object is).
+    if (r.estimate.valid && r.state == stereo_pf::TrackState::Tracking)
     {
       s.position = r.estimate.position;
       s.variance = r.estimate.covariance.diagonal();

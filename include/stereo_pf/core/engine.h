@@ -38,7 +38,7 @@ std::string toString(TrackState state);
 enum class Support
 {
   Seen,            ///< evidence >= found_similarity and above the background by background_margin
-  Unsure,          ///< between the thresholds: the track state does not change
+  Unsure,          ///< between the thresholds: neither counts towards nor breaks a run of seen or unseen frames
   LowEvidence,     ///< evidence < lost_similarity
   LikeBackground,  ///< background locations score as well as the best particle (within background_margin)
   OutsideView      ///< the estimate, or every particle of a set, left the viewing volume: lost at once
@@ -57,8 +57,8 @@ struct EngineConfig
   double nominal_dt = 1.0 / 30.0;     ///< dt used for the first frame and for non-increasing stamps
   double found_similarity = 0.65;     ///< best mean cue similarity at or above this counts as "object seen"
   double lost_similarity = 0.45;      ///< below this counts as "object not seen"
-  int found_frames = 2;               ///< consecutive seen frames to switch to Tracking
-  int lost_frames = 3;                ///< consecutive unseen frames to switch to Lost
+  int found_frames = 2;               ///< seen frames, no unseen one between, to switch to Tracking
+  int lost_frames = 3;                ///< unseen frames, no seen one between, to switch to Lost
   double respawn_fraction = 0.2;      ///< fraction of each set redrawn every frame while not Tracking
   /// While Tracking: the share of each set moved every frame to where the cues' target maps see the target
   /// (the recovery search: a fast object's jump, a bounce, the real object beside a distractor), each with the
