@@ -219,11 +219,14 @@ class Escaping : public Position3D
 {
 public:
   bool escape = false;
+  double escape_to = 0.0;  ///< > 0: every particle to this depth instead
   void predict(int set, double dt, ParticleSet& particles, Rng& rng) const override
   {
     Position3D::predict(set, dt, particles, rng);
     if (escape)
       particles.states.col(2).array() += 1e6;
+    if (escape_to > 0.0)
+      particles.states.col(2).setConstant(escape_to);
   }
 };
 }  // namespace
@@ -282,6 +285,38 @@ TEST(EngineBounds, ANearerMaxDepthBoundsTheParticles)
   EXPECT_EQ(beyond, 0.0);
   EXPECT_NEAR(engine.viewingVolume().farDepth(), 2.0, 1e-9);
   (void)r;
+}
+
+TEST(EngineBounds, BeyondWhereTheLearnedObjectIsResolvedIsOutsideTheView)
+{
+  // The far limit is also where the learned object's image radius falls to min_apparent_radius (fx R / 1 px: 18 m
+  // for the pendulum's 3.5 cm ball on its 525 px rig, nearer than fx b / 0.5 px = 94 m). A cloud thrown to 40 m,
+  // within the disparity's limit, is lost there rather than tracked as a speck.
+  Scene scene("pendulum_uncluttered.yaml");
+  auto state = std::make_shared<Escaping>();
+  state->initialize("state_model", Parameters());
+  EngineConfig config;
+  config.tracking_respawn_fraction = 0.0;
+  config.local_fraction = 0.0;
+  FilterEngine engine(state, defaultCues(), config);
+  std::string error;
+  ASSERT_TRUE(engine.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
+  FrameResult r = engine.step(scene.frame(0));
+  const double fx = scene.renderer().geometry().fx();
+  EXPECT_NEAR(engine.viewingVolume().farDepth(), fx * engine.targetRadius() / config.min_apparent_radius, 1e-6);
+  EXPECT_LT(engine.viewingVolume().farDepth(), 25.0);
+  state->escape_to = 40.0;
+  r = engine.step(scene.frame(1));
+  EXPECT_EQ(r.support, Support::OutsideView);
+  EXPECT_FALSE(r.estimate.valid);
+  EXPECT_EQ(r.state, TrackState::Lost);
+
+  // Without the limit, 40 m is inside the volume (the disparity's limit alone).
+  config.min_apparent_radius = 0.0;
+  FilterEngine unlimited(position3D(), defaultCues(), config);
+  ASSERT_TRUE(unlimited.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
+  unlimited.step(scene.frame(0));
+  EXPECT_GT(unlimited.viewingVolume().farDepth(), 40.0);
 }
 
 // Transactions: a target change applies to every cue or to none.

@@ -168,6 +168,9 @@ const std::vector<EngineField>& engineFields()
     doubleField<&C::max_depth>("max_depth", 0.0, 1e6, true,
                                "m; far limit of the viewing volume when nearer than where the disparity falls below "
                                "min_disparity (0: that alone)"),
+    doubleField<&C::min_apparent_radius>("min_apparent_radius", 0.0, 100.0, true,
+                                         "px; with a learned object size, the viewing volume ends where the object's "
+                                         "image radius falls to this (0: no such limit)"),
     intField<&C::background_samples>("background_samples", 0, 1000, false,
                                      "places beside the best particle, on its rows, whose median similarity is the "
                                      "background (0: no check)"),
@@ -927,7 +930,13 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
 
   const StereoGeometry& geometry = frame.geometry;
   cache_.reset(frame);
-  volume_ = ViewingVolume(geometry, config_.min_disparity, config_.max_depth);
+  double max_depth = config_.max_depth;
+  if (target_radius_ > 0.0 && config_.min_apparent_radius > 0.0)
+  {
+    const double unresolved = geometry.fx() * target_radius_ / config_.min_apparent_radius;
+    max_depth = max_depth > 0.0 ? std::min(max_depth, unresolved) : unresolved;
+  }
+  volume_ = ViewingVolume(geometry, config_.min_disparity, max_depth);
   FrameResult result;
 
   double dt = initialised_ ? frame.stamp - last_stamp_ : config_.nominal_dt;

@@ -91,6 +91,10 @@ struct EngineConfig
   double min_disparity = 0.5;
   /// m; a nearer far limit (0: min_disparity alone sets it).
   double max_depth = 0.0;
+  /// px; with a learned object size (targetRadius()), a nearer far limit still: the depth at which the object's
+  /// image radius falls to this (fx R / min_apparent_radius). Beyond it the object is not resolved, and any
+  /// speck of texture matches a cue scaled down to it (0: no such limit).
+  double min_apparent_radius = 1.0;
   /// Background check: the evidence cues also score this many locations along the best particle's image rows,
   /// away from it (same apparent size and disparity); the median of their similarities is the background
   /// (FrameResult::background). 0: no check.
