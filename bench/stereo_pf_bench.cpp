@@ -30,6 +30,7 @@
 #include "stereo_pf/plugins/position_3d.h"
 #include "stereo_pf/plugins/shape_circle.h"
 #include "stereo_pf/plugins/stereo_constraints.h"
+#include "stereo_pf/plugins/template_match.h"
 #include "stereo_pf/plugins/texture_edge.h"
 #include "stereo_pf/plugins/velocity_3d.h"
 
@@ -127,6 +128,10 @@ std::shared_ptr<ObservationModel> colourCue()
 std::shared_ptr<ObservationModel> contourCue()
 {
   return makeModel<ColourContour>("colour_contour");
+}
+std::shared_ptr<ObservationModel> templateCue()
+{
+  return makeModel<TemplateMatch>("template");
 }
 std::shared_ptr<ObservationModel> textureCue()
 {
@@ -527,7 +532,11 @@ BENCHMARK(BM_WeightedCovariance)->Apply(particleCounts);
 // The configurations measured.
 enum class StepConfig
 {
-  Position3DColour,   // Position3D + ColourHSI + ColourContour on pendulum_uncluttered (the default tracker)
+  Default,            // the default tracker (config/tracker.yaml): Velocity3D + ColourHSI + TemplateMatch +
+                      // ColourContour, recovery and local search, on pendulum_uncluttered
+  DefaultNoSearch,    // the same without the recovery and local search (their cost is the difference)
+  Position3DDefault,  // Position3D with the default cues and searches
+  Position3DColour,   // Position3D + ColourHSI + ColourContour on pendulum_uncluttered
   Position3DHistogram,  // Position3D + ColourHSI alone (the thesis's colour model) on pendulum_uncluttered
   Position3DAllCues,  // Position3D + ColourHSI, ColourContour, TextureEdge, ShapeCircle on checkered_cluttered
   SCColour,           // StereoConstraints + ColourHSI + ColourContour on pendulum_uncluttered
@@ -542,11 +551,16 @@ void BM_Step(benchmark::State& state, StepConfig config)
   std::shared_ptr<StateModel> model;
   if (config == StepConfig::SCColour || config == StepConfig::SCHistogram)
     model = makeModel<StereoConstraints>("state_model");
-  else if (config == StepConfig::Velocity3DColour)
+  else if (config == StepConfig::Velocity3DColour || config == StepConfig::Default ||
+           config == StepConfig::DefaultNoSearch)
     model = makeModel<Velocity3D>("state_model");
   else
     model = makeModel<Position3D>("state_model");
+  const bool default_cues = config == StepConfig::Default || config == StepConfig::DefaultNoSearch ||
+                            config == StepConfig::Position3DDefault;
   std::vector<std::shared_ptr<ObservationModel>> cues = { colourCue() };
+  if (default_cues)
+    cues.push_back(templateCue());
   if (config != StepConfig::Position3DHistogram && config != StepConfig::SCHistogram)
     cues.push_back(contourCue());
   if (config == StepConfig::Position3DAllCues)
@@ -557,6 +571,13 @@ void BM_Step(benchmark::State& state, StepConfig config)
   EngineConfig engine_config;
   engine_config.particles = n;
   engine_config.seed = kSeed;
+  if (!default_cues)
+    engine_config.local_fraction = 0.0;  // as these configurations were measured before the local search
+  if (config == StepConfig::DefaultNoSearch)
+  {
+    engine_config.local_fraction = 0.0;
+    engine_config.tracking_respawn_fraction = 0.0;
+  }
   FilterEngine engine(model, cues, engine_config);
   std::string error;
   if (!engine.learnTarget(s.frame(0), s.targetRoi(0), error))
@@ -585,6 +606,9 @@ void BM_Step(benchmark::State& state, StepConfig config)
 }
 // Registered per scene (see scene()): the colour-only configurations first ("colour": the default cues,
 // histogram and outline; "histogram": the thesis's colour model alone).
+BENCHMARK_CAPTURE(BM_Step, Default, StepConfig::Default)->Apply(particleCounts);
+BENCHMARK_CAPTURE(BM_Step, Default_without_searches, StepConfig::DefaultNoSearch)->Apply(particleCounts);
+BENCHMARK_CAPTURE(BM_Step, Position3D_default_cues, StepConfig::Position3DDefault)->Apply(particleCounts);
 BENCHMARK_CAPTURE(BM_Step, Position3D_colour, StepConfig::Position3DColour)->Apply(particleCounts);
 BENCHMARK_CAPTURE(BM_Step, Position3D_histogram, StepConfig::Position3DHistogram)->Apply(particleCounts);
 BENCHMARK_CAPTURE(BM_Step, StereoConstraints_colour, StepConfig::SCColour)->Apply(particleCounts);
