@@ -552,93 +552,11 @@ void FilterEngine::prepareProposals(const StereoGeometry& g, int count, const St
   local_proposals_ = 0;
   if (count <= 0 || config_.proposal_fraction <= 0.0)
     return;
-  // Where every model with a map agrees (their product: the colour of a grey object is everywhere, its
-  // template is not).
-  cv::Mat map_left, map_right, one_left, one_right;
-  bool have = false;
-  for (size_t k = 0; k < observation_models_.size(); ++k)
-  {
-    ObservationModel& m = *observation_models_[k];
-    // A cue the learning frame showed to match the background as well as the object has no say (cueTrust()).
-    if (m.enabled() && cue_trust_[k] > 0.0 && m.targetMap(cache_, View::Left, one_left) &&
-        m.targetMap(cache_, View::Right, one_right))
-    {
-      if (!have)
-      {
-        map_left = one_left.clone();
-        map_right = one_right.clone();
-      }
-      else
-      {
-        cv::multiply(map_left, one_left, map_left, 1.0 / 255.0);
-        cv::multiply(map_right, one_right, map_right, 1.0 / 255.0);
-      }
-      have = true;
-    }
-  }
-  if (!have)
-    return;
-  // Work on 4x4-pixel cells: a CDF over 20k cells instead of 300k pixels, and averaging suppresses
-  // isolated pixels that happen to share the target's colour.
-  constexpr int kCell = 4;
-  cv::resize(map_left, small_left_, cv::Size(map_left.cols / kCell, map_left.rows / kCell), 0, 0, cv::INTER_AREA);
-  cv::resize(map_right, small_right_, small_left_.size(), 0, 0, cv::INTER_AREA);
-  const int cols = small_left_.cols, rows = small_left_.rows;
-  proposal_cdf_.resize(static_cast<size_t>(cols) * rows);
-  double total = 0.0;
-  for (int y = 0; y < rows; ++y)
-  {
-    const uint8_t* row = small_left_.ptr<uint8_t>(y);
-    for (int x = 0; x < cols; ++x)
-    {
-      const double w = static_cast<double>(row[x]) * row[x];  // squared: favour strong matches
-      total += w;
-      proposal_cdf_[static_cast<size_t>(y) * cols + x] = total;
-    }
-  }
-  if (total <= 0.0)
-    return;
-  // The partner lies on the same row, at a positive disparity up to that of the nearest depth; while tracking
-  // (`near`), within a factor kDisparityReach of the estimate's: the maps see the target at about its present
-  // size, which a far smaller or larger disparity would contradict (a tiny far hypothesis matches anything).
-  double min_disparity = 1.0, max_disparity = g.disparity(config_.proposal_min_depth);
-  if (near && near->valid)
-  {
-    const double d = near->left.u - near->right.u;
-    min_disparity = std::max(min_disparity, d / kDisparityReach);
-    max_disparity = std::min(max_disparity, d * kDisparityReach);
-  }
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
-  row_cdf_.resize(cols);
-  for (int k = 0; k < count; ++k)
-  {
-    const size_t cell = std::upper_bound(proposal_cdf_.begin(), proposal_cdf_.end(), unit(rng_) * total) -
-                        proposal_cdf_.begin();
-    const int cx = static_cast<int>(std::min(cell, proposal_cdf_.size() - 1) % cols);
-    const int cy = static_cast<int>(std::min(cell, proposal_cdf_.size() - 1) / cols);
-    const Pixel left{ (cx + unit(rng_)) * kCell - 0.5, (cy + unit(rng_)) * kCell - 0.5 };
-    const int first = std::max(0, static_cast<int>(std::floor((left.u - max_disparity) / kCell)));
-    const int last = std::min(cols - 1, static_cast<int>(std::floor((left.u - min_disparity) / kCell)));
-    if (last < first)
-      continue;
-    const uint8_t* row = small_right_.ptr<uint8_t>(cy);
-    double row_total = 0.0;
-    for (int x = first; x <= last; ++x)
-    {
-      row_total += static_cast<double>(row[x]) * row[x];
-      row_cdf_[x - first] = row_total;
-    }
-    if (row_total <= 0.0)
-      continue;
-    const int n = last - first + 1;
-    const int rx = first + static_cast<int>(std::min<long>(
-                               std::upper_bound(row_cdf_.begin(), row_cdf_.begin() + n, unit(rng_) * row_total) -
-                                   row_cdf_.begin(),
-                               n - 1));
-    const Pixel right{ (rx + unit(rng_)) * kCell - 0.5, left.v };
-    if (left.u - right.u > 0.0)
-      proposals_.emplace_back(left, right);
-  }
+  MapProposals::Bounds bounds;
+  bounds.min_depth = config_.proposal_min_depth;
+  bounds.near = near;
+  bounds.reach = kDisparityReach;
+  map_proposals_.draw(cache_, observation_models_, cue_trust_, g, count, bounds, rng_, proposals_);
 }
 
 bool FilterEngine::anyNonRefiningCue() const
@@ -919,6 +837,20 @@ double FilterEngine::observe(const StereoGeometry& geometry, int s, Take take)
   return cues;
 }
 
+template <class Refining>
+double FilterEngine::refineSecondStage(const StereoGeometry& geometry, int s, Refining refining, bool& escaped)
+{
+  ParticleSet& p = sets_[s];
+  const double log_marginal = p.normalise();
+  const Eigen::MatrixXd cov = weightedCovariance(p.states, p.weights, weightedMean(p.states, p.weights));
+  systematicResample(p, rng_, resample_indices_, resample_scratch_);
+  jitter(p, cov, config_.refine_jitter, rng_);
+  p.log_weights.setZero();
+  observe(geometry, s, [&](const ObservationModel& m) { return refining(m) ? Use{ 1.0, false } : Use{}; });
+  escaped = boundToViewingVolume(s) == 0 || escaped;
+  return log_marginal;
+}
+
 FrameResult FilterEngine::step(const StereoFrame& frame)
 {
   const std::string invalid = frame.validate();
@@ -1034,17 +966,8 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
       }
     }
     if (two_stage)
-    {
-      result.log_marginal += p.normalise();
-      const Eigen::MatrixXd cov = weightedCovariance(p.states, p.weights, weightedMean(p.states, p.weights));
-      systematicResample(p, rng_, resample_indices_, resample_scratch_);
-      jitter(p, cov, config_.refine_jitter, rng_);
-      p.log_weights.setZero();
-      observe(geometry, s, [&](const ObservationModel& m) {
-        return active(m) && refining(m) ? Use{ 1.0, false } : Use{};
-      });
-      escaped = boundToViewingVolume(s) == 0 || escaped;
-    }
+      result.log_marginal += refineSecondStage(
+          geometry, s, [&](const ObservationModel& m) { return active(m) && refining(m); }, escaped);
     result.log_marginal += p.normalise();
   }
   result.evidence = std::isfinite(evidence) ? evidence : 0.0;

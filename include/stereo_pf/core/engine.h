@@ -15,6 +15,7 @@
 #include "stereo_pf/core/estimators.h"
 #include "stereo_pf/core/feature_cache.h"
 #include "stereo_pf/core/local_search.h"
+#include "stereo_pf/core/map_proposals.h"
 #include "stereo_pf/core/parameters.h"
 #include "stereo_pf/core/random.h"
 #include "stereo_pf/core/stereo_frame.h"
@@ -206,8 +207,8 @@ private:
   /// from the prior; while tracking (`arrival` given) only proposals, each arriving from *arrival in dt.
   void respawn(const StereoGeometry& geometry, int set, int count, double proposal_share,
                const StateEstimate* arrival, double dt);
-  /// Draw `count` stereo pairs where the cues' target maps agree; `near`: while tracking, the estimate whose
-  /// disparity bounds the pairs' (within a factor kDisparityReach).
+  /// Draw `count` stereo pairs where the cues' target maps agree (MapProposals); `near`: while tracking, the
+  /// estimate whose disparity bounds the pairs' (within a factor kDisparityReach).
   void prepareProposals(const StereoGeometry& geometry, int count, const StateEstimate* near);
   static constexpr double kDisparityReach = 1.5;
   /// While tracking: run the local search near the last estimates' image track and append `count` pairs around
@@ -231,8 +232,9 @@ private:
   /// Give the particles of set `s` whose hypotheses leave the viewing volume zero weight (log-weight -inf);
   /// returns how many are inside.
   int boundToViewingVolume(int s);
-  /// Median trust-weighted mean similarity of the evidence cues (`is_evidence`) at background locations along the rows of particle
-  /// `best` of set `s` (its hypotheses shifted sideways, away from it); false when too few locations fit.
+  /// Median trust-weighted mean similarity of the evidence cues (`is_evidence`) at background locations along
+  /// the rows of particle `best` of set `s` (its hypotheses shifted sideways, away from it); false when too few
+  /// locations fit.
   template <class IsEvidence>
   bool backgroundSimilarity(int s, int best, IsEvidence is_evidence, double& background);
   /// Every model's target as OpenCV YAML text, and back: learnTarget/loadTarget restore it when any model fails.
@@ -250,6 +252,12 @@ private:
   /// model's trust; comparesViews models: none).
   template <class Take>
   double observe(const StereoGeometry& geometry, int s, Take take);
+  /// Progressive correction, the second stage of a tracking frame: set `s`, weighed by the first-stage cues, is
+  /// normalised, resampled and jittered over the region they allow (refine_jitter times their covariance), then
+  /// weighed by the cues `refining(model)` selects alone. Returns the first stage's log marginal likelihood;
+  /// sets `escaped` when the jittered set left the viewing volume.
+  template <class Refining>
+  double refineSecondStage(const StereoGeometry& geometry, int s, Refining refining, bool& escaped);
 
   std::shared_ptr<StateModel> state_model_;
   std::vector<std::shared_ptr<ObservationModel>> observation_models_;
@@ -294,8 +302,7 @@ private:
 
   // detection-driven proposals of this frame: (left pixel, right pixel) pairs
   std::vector<std::pair<Pixel, Pixel>> proposals_;
-  cv::Mat small_left_, small_right_;
-  std::vector<double> proposal_cdf_, row_cdf_;
+  MapProposals map_proposals_;
 
   // scratch buffers kept across frames
   Eigen::VectorXd scratch_ll_, scratch_sim_, sum_sim_;

@@ -1,0 +1,108 @@
+// SPDX-License-Identifier: BSD-3-Clause
+// Copyright (c) 2026, stereo_pf developers
+#include "stereo_pf/core/map_proposals.h"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include <opencv2/imgproc.hpp>
+
+namespace stereo_pf
+{
+void MapProposals::draw(FeatureCache& cache, const std::vector<std::shared_ptr<ObservationModel>>& models,
+                        const std::vector<double>& trust, const StereoGeometry& g, int count, const Bounds& bounds,
+                        Rng& rng, std::vector<std::pair<Pixel, Pixel>>& pairs)
+{
+  if (count <= 0)
+    return;
+  // Where every model with a map agrees (their product: the colour of a grey object is everywhere, its
+  // template is not).
+  cv::Mat map_left, map_right, one_left, one_right;
+  bool have = false;
+  for (size_t k = 0; k < models.size(); ++k)
+  {
+    ObservationModel& m = *models[k];
+    // A cue the learning frame showed to match the background as well as the object (trust 0) has no say.
+    if (m.enabled() && trust[k] > 0.0 && m.targetMap(cache, View::Left, one_left) &&
+        m.targetMap(cache, View::Right, one_right))
+    {
+      if (!have)
+      {
+        map_left = one_left.clone();
+        map_right = one_right.clone();
+      }
+      else
+      {
+        cv::multiply(map_left, one_left, map_left, 1.0 / 255.0);
+        cv::multiply(map_right, one_right, map_right, 1.0 / 255.0);
+      }
+      have = true;
+    }
+  }
+  if (!have)
+    return;
+  // Work on 4x4-pixel cells: a CDF over 20k cells instead of 300k pixels, and averaging suppresses
+  // isolated pixels that happen to share the target's colour.
+  constexpr int kCell = 4;
+  cv::resize(map_left, small_left_, cv::Size(map_left.cols / kCell, map_left.rows / kCell), 0, 0, cv::INTER_AREA);
+  cv::resize(map_right, small_right_, small_left_.size(), 0, 0, cv::INTER_AREA);
+  const int cols = small_left_.cols, rows = small_left_.rows;
+  cdf_.resize(static_cast<size_t>(cols) * rows);
+  double total = 0.0;
+  for (int y = 0; y < rows; ++y)
+  {
+    const uint8_t* row = small_left_.ptr<uint8_t>(y);
+    for (int x = 0; x < cols; ++x)
+    {
+      const double w = static_cast<double>(row[x]) * row[x];  // squared: favour strong matches
+      total += w;
+      cdf_[static_cast<size_t>(y) * cols + x] = total;
+    }
+  }
+  if (total <= 0.0)
+    return;
+  // The partner lies on the same row, at a positive disparity up to that of the nearest depth; while tracking
+  // (`near`), within a factor `reach` of the estimate's: the maps see the target at about its present size,
+  // which a far smaller or larger disparity would contradict (a tiny far hypothesis matches anything).
+  double min_disparity = 1.0, max_disparity = g.disparity(bounds.min_depth);
+  if (bounds.near && bounds.near->valid)
+  {
+    const double d = bounds.near->left.u - bounds.near->right.u;
+    min_disparity = std::max(min_disparity, d / bounds.reach);
+    max_disparity = std::min(max_disparity, d * bounds.reach);
+  }
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  row_cdf_.resize(cols);
+  for (int k = 0; k < count; ++k)
+  {
+    const size_t cell = std::upper_bound(cdf_.begin(), cdf_.end(), unit(rng) * total) -
+                        cdf_.begin();
+    const int cx = static_cast<int>(std::min(cell, cdf_.size() - 1) % cols);
+    const int cy = static_cast<int>(std::min(cell, cdf_.size() - 1) / cols);
+    const Pixel left{ (cx + unit(rng)) * kCell - 0.5, (cy + unit(rng)) * kCell - 0.5 };
+    const int first = std::max(0, static_cast<int>(std::floor((left.u - max_disparity) / kCell)));
+    const int last = std::min(cols - 1, static_cast<int>(std::floor((left.u - min_disparity) / kCell)));
+    if (last < first)
+      continue;
+    const uint8_t* row = small_right_.ptr<uint8_t>(cy);
+    double row_total = 0.0;
+    for (int x = first; x <= last; ++x)
+    {
+      row_total += static_cast<double>(row[x]) * row[x];
+      row_cdf_[x - first] = row_total;
+    }
+    if (row_total <= 0.0)
+      continue;
+    const int n = last - first + 1;
+    const int rx = first + static_cast<int>(std::min<long>(
+                               std::upper_bound(row_cdf_.begin(), row_cdf_.begin() + n, unit(rng) * row_total) -
+                                   row_cdf_.begin(),
+                               n - 1));
+    const Pixel right{ (rx + unit(rng)) * kCell - 0.5, left.v };
+    if (left.u - right.u > 0.0)
+      pairs.emplace_back(left, right);
+  }
+}
+
+}  // namespace stereo_pf
