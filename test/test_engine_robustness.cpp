@@ -229,21 +229,42 @@ public:
       particles.states.col(2).setConstant(escape_to);
   }
 };
+
+/// Learned from the pendulum's first frame and tracking it with an Escaping state model, without the recovery
+/// proposals and the local search, which would put a share of the set back at the object and so keep it from
+/// leaving the volume whole.
+struct EscapingRun
+{
+  Scene scene{ "pendulum_uncluttered.yaml" };
+  std::shared_ptr<Escaping> state = [] {
+    auto m = std::make_shared<Escaping>();
+    m->initialize("state_model", Parameters());
+    return m;
+  }();
+  EngineConfig config = [] {
+    EngineConfig c;
+    c.tracking_respawn_fraction = 0.0;
+    c.local_fraction = 0.0;
+    return c;
+  }();
+  FilterEngine engine{ state, defaultCues(), config };
+  bool learned = [this] {
+    std::string error;
+    const bool ok = engine.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error);
+    EXPECT_TRUE(ok) << error;
+    return ok;
+  }();
+};
 }  // namespace
 
 TEST(EngineBounds, ASetOutsideTheViewingVolumeIsLostAndRedrawnFromThePrior)
 {
-  Scene scene("pendulum_uncluttered.yaml");
-  auto state = std::make_shared<Escaping>();
-  state->initialize("state_model", Parameters());
-  // Without the recovery proposals and the local search, which would put a share of the set back at the object
-  // and so keep it from leaving the volume whole: this is the path for a set that does.
-  EngineConfig config;
-  config.tracking_respawn_fraction = 0.0;
-  config.local_fraction = 0.0;
-  FilterEngine engine(state, defaultCues(), config);
-  std::string error;
-  ASSERT_TRUE(engine.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
+  // The path for a set that leaves the volume whole.
+  EscapingRun run;
+  ASSERT_TRUE(run.learned);
+  Scene& scene = run.scene;
+  FilterEngine& engine = run.engine;
+  auto& state = run.state;
   FrameResult r;
   for (int k = 0; k < 10; ++k)
     r = engine.step(scene.frame(k));
@@ -292,20 +313,16 @@ TEST(EngineBounds, BeyondWhereTheLearnedObjectIsResolvedIsOutsideTheView)
   // The far limit is also where the learned object's image radius falls to min_apparent_radius (fx R / 1 px: 18 m
   // for the pendulum's 3.5 cm ball on its 525 px rig, nearer than fx b / 0.5 px = 94 m). A cloud thrown to 40 m,
   // within the disparity's limit, is lost there rather than tracked as a speck.
-  Scene scene("pendulum_uncluttered.yaml");
-  auto state = std::make_shared<Escaping>();
-  state->initialize("state_model", Parameters());
-  EngineConfig config;
-  config.tracking_respawn_fraction = 0.0;
-  config.local_fraction = 0.0;
-  FilterEngine engine(state, defaultCues(), config);
-  std::string error;
-  ASSERT_TRUE(engine.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
+  EscapingRun run;
+  ASSERT_TRUE(run.learned);
+  Scene& scene = run.scene;
+  FilterEngine& engine = run.engine;
+  EngineConfig config = run.config;
   FrameResult r = engine.step(scene.frame(0));
   const double fx = scene.renderer().geometry().fx();
   EXPECT_NEAR(engine.viewingVolume().farDepth(), fx * engine.targetRadius() / config.min_apparent_radius, 1e-6);
   EXPECT_LT(engine.viewingVolume().farDepth(), 25.0);
-  state->escape_to = 40.0;
+  run.state->escape_to = 40.0;
   r = engine.step(scene.frame(1));
   EXPECT_EQ(r.support, Support::OutsideView);
   EXPECT_FALSE(r.estimate.valid);
@@ -314,6 +331,7 @@ TEST(EngineBounds, BeyondWhereTheLearnedObjectIsResolvedIsOutsideTheView)
   // Without the limit, 40 m is inside the volume (the disparity's limit alone).
   config.min_apparent_radius = 0.0;
   FilterEngine unlimited(position3D(), defaultCues(), config);
+  std::string error;
   ASSERT_TRUE(unlimited.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
   unlimited.step(scene.frame(0));
   EXPECT_GT(unlimited.viewingVolume().farDepth(), 40.0);
