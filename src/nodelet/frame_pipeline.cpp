@@ -206,8 +206,7 @@ void FramePipeline::publish(const std_msgs::Header& header, const StereoFrame& f
                              const ros::WallTime& arrival, const ros::WallTime& start)
 {
   const StateEstimate& e = result.estimate;
-  // An estimate is published only while tracking: a searching or lost filter's mean is no position.
-  const bool tracking = result.state == TrackState::Tracking && e.valid;
+  const bool tracking = result.published();
   if (tracking)
   {
     // The target first: it is what latency is measured on.

@@ -270,9 +270,7 @@ public:
   {
     const stereo_pf::FrameResult r = engine().step(frame);
     StepResult s;
-    // As the nodelet publishes it: a 3D estimate only while tracking (searching or lost, the cloud's mean is
-    // where the filter looks, not where the object is).
-    if (r.estimate.valid && r.state == stereo_pf::TrackState::Tracking)
+    if (r.published())  // as the nodelet publishes it
     {
       s.position = r.estimate.position;
       s.variance = r.estimate.covariance.diagonal();

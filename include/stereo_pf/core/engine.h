@@ -137,6 +137,11 @@ struct FrameResult
   double log_marginal = 0.0;           ///< log mean likelihood (sum over sets)
   bool resampled = false;
   double dt = 0.0;                     ///< seconds since the previous frame
+
+  /// The estimate is a position the user is given: valid, and the target is tracked (searching or lost, the
+  /// cloud's mean is where the filter looks, not where the object is). The nodelet publishes it, track_bag
+  /// writes it, only then.
+  bool published() const { return state == TrackState::Tracking && estimate.valid; }
 };
 
 class FilterEngine
