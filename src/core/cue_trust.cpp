@@ -12,8 +12,8 @@ std::vector<double> measureCueTrust(FeatureCache& cache, const std::vector<std::
                                     const CueTrustOptions& options)
 {
   const int n = static_cast<int>(models.size());
-  std::vector<double> contrast(n, 0.0);
-  std::vector<bool> measured(n, false);
+  std::vector<double> contrast(n, 0.0);  // summed over the views measured
+  std::vector<int> views(n, 0);
   const double width = cache.geometry().width(), height = cache.geometry().height();
   const double r = std::max(1.0, radius_px);
   for (const auto& [view, at] : { std::make_pair(View::Left, left), std::make_pair(View::Right, right) })
@@ -55,16 +55,16 @@ std::vector<double> measureCueTrust(FeatureCache& cache, const std::vector<std::
                      std::min<long>(static_cast<long>(background.size()) - 1,
                                     static_cast<long>(options.quantile * static_cast<double>(background.size())));
       std::nth_element(background.begin(), q, background.end());
-      contrast[k] += 0.5 * (sim[0] - *q);
-      measured[k] = true;
+      contrast[k] += sim[0] - *q;
+      ++views[k];
     }
   }
   std::vector<double> trust(n, 1.0);
   bool any = false;
   for (int k = 0; k < n; ++k)
-    if (measured[k])
+    if (views[k] > 0)
     {
-      trust[k] = std::clamp(contrast[k] / options.margin, 0.0, 1.0);
+      trust[k] = std::clamp(contrast[k] / views[k] / options.margin, 0.0, 1.0);
       any = any || trust[k] > 0.0;
     }
   if (!any)

@@ -31,10 +31,10 @@ struct CueTrustOptions
 };
 
 /// Trust in [0, 1] of each of `models` (same order), from their similarity at the object (`left`, `right`: its
-/// centre in each view, `radius_px` its apparent radius) against the background places, averaged over the two
-/// views. Models not measured (disabled, comparing views) get 1. When no measured model tells the object apart
-/// at all, every model gets 1: the cues then share the work as configured, and the background check decides
-/// whether the object is seen.
+/// centre in each view, `radius_px` its apparent radius) against the background places, averaged over the views
+/// measured (a view the object fills has no background places). Models not measured (disabled, comparing
+/// views) get 1. When no measured model tells the object apart at all, every model gets 1: the cues then share
+/// the work as configured, and the background check decides whether the object is seen.
 std::vector<double> measureCueTrust(FeatureCache& cache, const std::vector<std::shared_ptr<ObservationModel>>& models,
                                     const Pixel& left, const Pixel& right, double radius_px,
                                     const CueTrustOptions& options = CueTrustOptions());
