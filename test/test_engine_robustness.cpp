@@ -3,6 +3,7 @@
 // The engine on a robot's bad days (issue 12): the state stays inside what the cameras can see, a target the
 // background explains as well is never "tracking", a set that leaves the viewing volume is lost and redrawn,
 // and learning or loading a target changes all the cues' targets or none.
+#include <set>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -483,6 +484,48 @@ TEST(EngineRecovery, APlantedWrongLockIsLeftForTheObjectWithoutLosingTheTrack)
               with, without);
   EXPECT_TRUE(without == -1 || without > with) << without;
   EXPECT_TRUE(without == -1 || lost);
+}
+
+namespace
+{
+/// The colour histogram that notes the frames on which its target map is asked for: while tracking, only the
+/// recovery search draws from the maps.
+class MapCounting : public ColourHSI
+{
+public:
+  int frame = 0;
+  std::set<int> frames;
+  bool targetMap(FeatureCache& cache, View view, cv::Mat& map) override
+  {
+    frames.insert(frame);
+    return ColourHSI::targetMap(cache, view, map);
+  }
+};
+
+/// The frames (after acquisition at frame 0, tracking) on which the recovery search ran, of the pendulum's first 13.
+std::set<int> recoveryFrames(int period)
+{
+  Scene scene("pendulum_uncluttered.yaml");
+  auto colour = cue<MapCounting>("colour");
+  EngineConfig config;
+  config.recovery_period = period;
+  FilterEngine engine(position3D(), { colour, cue<ColourContour>("colour_contour") }, config);
+  std::string error;
+  EXPECT_TRUE(engine.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
+  for (int k = 0; k <= 12; ++k)
+  {
+    colour->frame = k;
+    EXPECT_EQ(engine.step(scene.frame(k)).state, TrackState::Tracking) << "frame " << k;
+  }
+  return colour->frames;
+}
+}  // namespace
+
+TEST(EngineRecovery, TheRecoverySearchRunsOnEveryPeriodthFrameOfATrack)
+{
+  // Frame 0 starts the track from the box (no search); frame k is the track's k-th after it.
+  EXPECT_EQ(recoveryFrames(1), (std::set<int>{ 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12 }));
+  EXPECT_EQ(recoveryFrames(4), (std::set<int>{ 4, 8, 12 }));
 }
 
 namespace

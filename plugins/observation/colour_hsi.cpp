@@ -47,6 +47,9 @@ ColourHSI::Tunables ColourHSI::readTunables() const
     throw ParameterError("parameter '" + (p.prefix().empty() ? std::string() : p.prefix() + "/") +
                          "surround_scale' = " + std::to_string(t.surround_scale) +
                          " would put the ring inside the object (allowed: 0 = off, or 1..4)");
+  t.surround_margin = p.getDouble("surround_margin", 3.0, 0.0, 100.0,
+                                  "px; the ring lies at least this far outside the apparent radius (the object's "
+                                  "edge is spread over a few pixels by blur, demosaicing and compression)");
   t.surround_samples = p.getInt("surround_samples", 32, 4, 256, "points sampled on that ring");
   t.surround_weight = p.getDouble("surround_weight", 1.0, 0.0, 10.0,
                                   "weight of the ring's similarity to the target against the hypothesis");
@@ -139,12 +142,14 @@ void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen:
   const float surround = static_cast<float>(tunables_.surround_scale);
   const double surround_weight = tunables_.surround_weight;
   const int ring_n = tunables_.surround_samples;
+  const float margin = static_cast<float>(tunables_.surround_margin);
   // Window half-size and ring radius of hypothesis i (ring 0: no ring).
   auto extent = [&](int i, float& half, float& ring) {
     const float r = hyp.radius[i];
     // radius <= 0 (or NaN): a 2D hypothesis with the thesis's fixed window; otherwise scale with the ball.
     half = std::min(r > 0.0f ? scale * std::max(r, min_radius) : fixed_half, max_half);
-    ring = surround * (r > 0.0f ? std::max(r, min_radius) : learned_radius_);
+    const float radius = r > 0.0f ? std::max(r, min_radius) : learned_radius_;
+    ring = std::max(surround * radius, radius + margin);
     if (!(surround > 0.0f && ring > 0.0f && ring < max_half))
       ring = 0.0f;
   };

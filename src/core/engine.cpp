@@ -148,6 +148,9 @@ const std::vector<EngineField>& engineFields()
     doubleField<&C::tracking_respawn_fraction>("tracking_respawn_fraction", 0.0, 1.0, false,
                                                "while tracking, share of each set moved every frame to where the "
                                                "cues' maps see the target (the recovery search)"),
+    intField<&C::recovery_period>("recovery_period", 1, 1000, false,
+                                  "while tracking, the recovery search runs on every this-many-th frame (1: every "
+                                  "frame)"),
     doubleField<&C::proposal_fraction>("proposal_fraction", 0.0, 1.0, false,
                                        "share of the redrawn particles proposed where the cues see the target"),
     doubleField<&C::jump_weight>("jump_weight", 0.0, 1.0, false,
@@ -893,7 +896,10 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     // While tracking, the redrawn particles all go where the cues see the target (recovery search), arriving
     // from the last estimate; otherwise a share of them does and the rest come from the prior.
     const bool tracking = state_ == TrackState::Tracking && last_estimate_.valid;
-    const double fraction = tracking ? config_.tracking_respawn_fraction : config_.respawn_fraction;
+    // While tracking, the recovery search runs on every recovery_period-th frame of the track only.
+    const bool recover = !tracking || state_frames_ % config_.recovery_period == 0;
+    const double fraction =
+        tracking ? (recover ? config_.tracking_respawn_fraction : 0.0) : config_.respawn_fraction;
     const double share = tracking ? 1.0 : config_.proposal_fraction;
     int respawn_count = static_cast<int>(std::lround(fraction * config_.particles));
     prepareProposals(geometry, static_cast<int>(std::lround(share * respawn_count)), tracking ? &last_estimate_ : nullptr);

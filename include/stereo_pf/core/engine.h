@@ -65,6 +65,10 @@ struct EngineConfig
   /// (the recovery search: a fast object's jump, a bounce, the real object beside a distractor), each with the
   /// velocity of a jump from the previous estimate (StateModel::setArrival). None from the prior.
   double tracking_respawn_fraction = 0.05;
+  /// The recovery search runs on every recovery_period-th frame while Tracking (1: every frame). Its target maps
+  /// and the frame-wide particles it proposes cost more than the rest of a step; a wrong lock or a jump is found
+  /// a few frames later instead, at a fraction of the cost.
+  int recovery_period = 4;
   /// Prior weight of such a recovery particle relative to a predicted one: the chance that the object jumped
   /// rather than moved as the dynamics say. Small: a look-alike elsewhere takes the track only when it explains
   /// the images much better, or consistently over frames.
