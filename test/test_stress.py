@@ -195,7 +195,8 @@ class Smoke(unittest.TestCase):
         cls.docs = os.path.join(cls.out, "docs")
         cls.result = subprocess.run(
             [os.path.join(ROOT, "scripts", "stress"), "--n", "2", "--frames", "30", "--no-build", "--devel",
-             OPTIONS.devel, "--out", os.path.join(cls.out, "suite"), "--docs", cls.docs, "--real", cls.manifest],
+             OPTIONS.devel, "--out", os.path.join(cls.out, "suite"), "--docs", cls.docs, "--real", cls.manifest,
+             "--set", "engine/recovery_period=2"],
             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
     def test_runs_and_writes_a_csv_row_per_run(self):
@@ -243,6 +244,8 @@ class Smoke(unittest.TestCase):
         self.assertRegex(md, r"\n\| stress_001 \| \d+x\d+ ")
         self.assertRegex(md, r"\n\| fake_pendulum \| 30 \| 5 \| 1\.10 \| 1\.0 \| [0-9.]+ \|")
         self.assertIn("scripts/stress --n 2 --frames 30", md)
+        # a variant's settings are given to every run of ours and said on the page
+        self.assertIn("changed by `--set engine/recovery_period=2`", md)
         for name in ("stress_000.yaml", "stress_001.yaml"):
             self.assertTrue(os.path.exists(os.path.join(self.out, "suite", "scenes", name)))
         self.assertEqual(os.listdir(os.path.join(self.out, "suite", "bags")), [])  # deleted once scored
@@ -256,6 +259,14 @@ class Smoke(unittest.TestCase):
                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         self.assertNotEqual(p.returncode, 0)
         self.assertIn("entry 0: field 'repo' missing", p.stdout)
+
+    def test_a_malformed_setting_is_refused(self):
+        p = subprocess.run([os.path.join(ROOT, "scripts", "stress"), "--n", "1", "--no-build", "--set",
+                            "recovery_period", "--out", os.path.join(self.out, "bad"), "--docs",
+                            os.path.join(self.out, "bad")],
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        self.assertNotEqual(p.returncode, 0)
+        self.assertIn("--set takes KEY=VALUE", p.stdout)
 
 
 if __name__ == "__main__":
