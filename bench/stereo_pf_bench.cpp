@@ -30,6 +30,7 @@
 #include "stereo_pf/plugins/position_3d.h"
 #include "stereo_pf/plugins/shape_circle.h"
 #include "stereo_pf/plugins/stereo_constraints.h"
+#include "stereo_pf/plugins/stereo_match.h"
 #include "stereo_pf/plugins/template_match.h"
 #include "stereo_pf/plugins/texture_edge.h"
 #include "stereo_pf/plugins/velocity_3d.h"
@@ -132,6 +133,10 @@ std::shared_ptr<ObservationModel> contourCue()
 std::shared_ptr<ObservationModel> templateCue()
 {
   return makeModel<TemplateMatch>("template");
+}
+std::shared_ptr<ObservationModel> stereoCue()
+{
+  return makeModel<StereoMatch>("stereo");
 }
 std::shared_ptr<ObservationModel> textureCue()
 {
@@ -533,7 +538,7 @@ BENCHMARK(BM_WeightedCovariance)->Apply(particleCounts);
 enum class StepConfig
 {
   Default,            // the default tracker (config/tracker.yaml): Velocity3D + ColourHSI + TemplateMatch +
-                      // ColourContour, recovery and local search, on pendulum_uncluttered
+                      // ColourContour + StereoMatch, recovery and local search, on pendulum_uncluttered
   DefaultNoSearch,    // the same without the recovery and local search (their cost is the difference)
   Position3DDefault,  // Position3D with the default cues and searches
   Position3DColour,   // Position3D + ColourHSI + ColourContour on pendulum_uncluttered
@@ -563,6 +568,8 @@ void BM_Step(benchmark::State& state, StepConfig config)
     cues.push_back(templateCue());
   if (config != StepConfig::Position3DHistogram && config != StepConfig::SCHistogram)
     cues.push_back(contourCue());
+  if (default_cues)
+    cues.push_back(stereoCue());
   if (config == StepConfig::Position3DAllCues)
   {
     cues.push_back(textureCue());

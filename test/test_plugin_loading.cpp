@@ -109,23 +109,29 @@ TEST(PluginLoading, ConfigurationBuildsTheListedModelsWithTheirParameters)
   EXPECT_DOUBLE_EQ(models[1]->weight(), 0.5);
 }
 
-// Without a list: Velocity3D and the colour histogram, the grey-level template and the colour outline (a refining cue), each
-// under its own namespace; the `refine` switch is a common parameter of every cue.
-TEST(PluginLoading, DefaultCuesAreTheColourHistogramTheTemplateAndTheOutline)
+// Without a list: Velocity3D and the colour histogram, the grey-level template, the colour outline and the stereo
+// match (two refining cues), each under its own namespace; the `refine` switch is a common parameter of every cue.
+TEST(PluginLoading, DefaultCuesAreTheColourHistogramTheTemplateTheOutlineAndTheStereoMatch)
 {
   Parameters p;
-  loadYamlString("colour_contour: {sigma: 0.08}\nstereo_cue: {refine: false}\n", p);
+  loadYamlString("colour_contour: {sigma: 0.08}\nstereo: {sigma: 0.2}\nstereo_cue: {refine: false}\n", p);
   Tracker tracker(p);
-  EXPECT_EQ(tracker.pluginTypes(), (std::vector<std::string>{ "stereo_pf/Velocity3D", "stereo_pf/ColourHSI",
-                                                               "stereo_pf/TemplateMatch", "stereo_pf/ColourContour" }));
+  EXPECT_EQ(tracker.pluginTypes(),
+            (std::vector<std::string>{ "stereo_pf/Velocity3D", "stereo_pf/ColourHSI", "stereo_pf/TemplateMatch",
+                                       "stereo_pf/ColourContour", "stereo_pf/StereoMatch" }));
   const auto& models = tracker.engine().observationModels();
-  ASSERT_EQ(models.size(), 3u);
+  ASSERT_EQ(models.size(), 4u);
   EXPECT_EQ(models[0]->name(), "colour");
   EXPECT_FALSE(models[0]->refine());
   EXPECT_EQ(models[1]->name(), "template");
   EXPECT_FALSE(models[1]->refine());
   EXPECT_EQ(models[2]->name(), "colour_contour");
   EXPECT_TRUE(models[2]->refine());
+  EXPECT_EQ(models[3]->name(), "stereo");
+  EXPECT_TRUE(models[3]->refine());
+  EXPECT_TRUE(models[3]->comparesViews());
+  for (const std::string& m : unknownParameters(p, kRosRuntimeParameters))
+    EXPECT_EQ(m.find("'stereo/"), std::string::npos) << "the default stereo cue reads its namespace: " << m;
   auto stereo = tracker.createObservationModel("stereo_pf/StereoMatch", "stereo_cue", p.sub("stereo_cue"));
   EXPECT_FALSE(stereo->refine());
   EXPECT_TRUE(tracker.createObservationModel("stereo_pf/StereoMatch", "s", Parameters())->refine());
@@ -157,7 +163,7 @@ TEST(PluginLoading, MisspeltKeysAreNamedWithTheNearestKnownOne)
   Parameters p;
   loadYamlString("colour: {sigmaa: 0.2}\n"
                  "engine: {particle: 500}\n"
-                 "stereo: {sigma: 0.1}\n"
+                 "texture: {sigma: 0.1}\n"
                  "state_model: {type: stereo_pf/Position3D, z_mx: 4.0}\n"
                  "queue_size: 3\n"
                  "publish_tff: true\n"
@@ -172,7 +178,7 @@ TEST(PluginLoading, MisspeltKeysAreNamedWithTheNearestKnownOne)
   EXPECT_TRUE(said("'engine/particle' (ignored): did you mean 'engine/particles'?"));
   EXPECT_TRUE(said("'state_model/z_mx' (ignored): did you mean 'state_model/z_max'?"));
   EXPECT_TRUE(said("'publish_tff' (ignored): did you mean 'publish_tf'?"));
-  EXPECT_TRUE(said("'stereo/sigma' (ignored): nothing loaded reads the namespace 'stereo'"));
+  EXPECT_TRUE(said("'texture/sigma' (ignored): nothing loaded reads the namespace 'texture'"));
   EXPECT_TRUE(said("'entirely_unknown_setting' (ignored): not a parameter"));
   EXPECT_FALSE(said("queue_size")) << "a ROS runtime key reported";
   EXPECT_EQ(m.size(), 6u);

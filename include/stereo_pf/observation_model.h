@@ -34,6 +34,9 @@ public:
   virtual bool learnTarget(FeatureCache& cache, View view, const cv::Rect& roi, std::string& error) = 0;
   /// True once a target has been learned or loaded.
   virtual bool hasTarget() const = 0;
+  /// Optional: false for a model with no target of its own (e.g. one comparing the two views): it saves nothing,
+  /// and a target file needs no entry for it (files saved before it was configured still load).
+  virtual bool learnsTarget() const { return true; }
 
   /// Evaluate every hypothesis of one view: write the model's log-likelihood into `log_likelihood[i]`
   /// (any constant offset is irrelevant) and a similarity in [0, 1] into `similarity[i]` (1 = looks

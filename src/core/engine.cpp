@@ -443,7 +443,7 @@ bool FilterEngine::loadTarget(const std::string& path, std::string& error)
       if (node.name() != kTargetSizeNode && node.name() != kCueTrustNode)
         present.push_back(node.name());
     for (const auto& m : observation_models_)
-      if (fs[m->name()].empty())
+      if (m->learnsTarget() && fs[m->name()].empty())
         missing.push_back(m->name());
     if (!missing.empty())
     {

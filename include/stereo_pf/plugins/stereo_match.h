@@ -59,6 +59,8 @@ public:
   bool learnTarget(FeatureCache& cache, View view, const cv::Rect& roi, std::string& error) override;
   /// Always true: the cue needs no target.
   bool hasTarget() const override { return true; }
+  /// False: nothing is saved, and target files need no entry for it.
+  bool learnsTarget() const override { return false; }
   /// One view alone cannot be matched: every hypothesis gets the log-likelihood of ZNCC = 0, similarity 0.
   void evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
                 Eigen::Ref<Eigen::VectorXd> similarity) override;
