@@ -149,7 +149,7 @@ void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen:
     // radius <= 0 (or NaN): a 2D hypothesis with the thesis's fixed window; otherwise scale with the ball.
     half = std::min(r > 0.0f ? scale * std::max(r, min_radius) : fixed_half, max_half);
     const float radius = r > 0.0f ? std::max(r, min_radius) : learned_radius_;
-    ring = std::max(surround * radius, radius + margin);
+    ring = radius > 0.0f ? std::max(surround * radius, radius + margin) : 0.0f;  // no radius learned: no ring
     if (!(surround > 0.0f && ring > 0.0f && ring < max_half))
       ring = 0.0f;
   };

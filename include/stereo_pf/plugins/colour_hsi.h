@@ -53,8 +53,8 @@ namespace stereo_pf
 /// achromatic_intensity (0.08, 0..1), sigma (0.15, 0.001..10), window (11, odd 3..101),
 /// window_scale (0.7, 0.1..3), samples (11, 3..31), min_radius (2 px, 0.5..100),
 /// target_margin (0.15, 0..0.45), surround_scale (1.25; 0 = off, else 1..4), surround_margin (3 px, 0..100),
-/// surround_samples (32, 4..256), surround_weight (1.0, 0..10). The binning is structural (a learned target is tied to it) and is read
-/// at initialisation only; reconfigure() re-reads the others.
+/// surround_samples (32, 4..256), surround_weight (1.0, 0..10). The binning is structural (a learned target is
+/// tied to it) and is read at initialisation only; reconfigure() re-reads the others.
 class ColourHSI : public ObservationModel
 {
 public:
