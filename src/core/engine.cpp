@@ -590,8 +590,8 @@ int FilterEngine::proposeLocally(const StereoGeometry& geometry, int count)
     for (size_t k = 0; k < observation_models_.size(); ++k)
     {
       ObservationModel& m = *observation_models_[k];
-      if (!m.enabled() || m.comparesViews() || (others && m.refine()))
-        continue;
+      if (!m.enabled() || m.comparesViews() || (others && m.refine()) || !(cue_trust_[k] > 0.0))
+        continue;  // as in observe(): an untrusted cue has no say
       scratch_ll_.resize(hyp.size());
       scratch_sim_.resize(hyp.size());
       m.evaluate(cache_, hyp, scratch_ll_, scratch_sim_);
@@ -896,10 +896,10 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     // While tracking, the redrawn particles all go where the cues see the target (recovery search), arriving
     // from the last estimate; otherwise a share of them does and the rest come from the prior.
     const bool tracking = state_ == TrackState::Tracking && last_estimate_.valid;
-    // While tracking, the recovery search runs on every recovery_period-th frame of the track only.
-    const bool recover = !tracking || state_frames_ % config_.recovery_period == 0;
-    const double fraction =
-        tracking ? (recover ? config_.tracking_respawn_fraction : 0.0) : config_.respawn_fraction;
+    // The recovery search runs on every recovery_period-th frame of a track only.
+    double fraction = config_.respawn_fraction;
+    if (tracking)
+      fraction = state_frames_ % config_.recovery_period == 0 ? config_.tracking_respawn_fraction : 0.0;
     const double share = tracking ? 1.0 : config_.proposal_fraction;
     int respawn_count = static_cast<int>(std::lround(fraction * config_.particles));
     prepareProposals(geometry, static_cast<int>(std::lround(share * respawn_count)), tracking ? &last_estimate_ : nullptr);
