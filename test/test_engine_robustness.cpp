@@ -547,24 +547,32 @@ public:
   }
 };
 
-/// The track state after each frame of the pendulum whose evidence follows `script` from frame 10 on.
-std::vector<TrackState> statesUnder(const std::vector<double>& script)
+/// Every frame's result on the pendulum whose evidence follows `script` from frame 10 on.
+std::vector<FrameResult> resultsUnder(const std::vector<double>& script, EngineConfig config = EngineConfig())
 {
   Scene scene("pendulum_uncluttered.yaml");
   auto colour = cue<Scripted>("colour");
-  EngineConfig config;
   config.local_fraction = 0.0;  // the local search scores batches of its own size
   colour->particles = config.particles;
   FilterEngine engine(position3D(), { colour }, config);
   std::string error;
   EXPECT_TRUE(engine.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
-  std::vector<TrackState> states;
+  std::vector<FrameResult> results;
   for (int k = 0; k < 10 + static_cast<int>(script.size()); ++k)
   {
     colour->frame = k - 10;
     colour->script = k >= 10 ? script : std::vector<double>{};
-    states.push_back(engine.step(scene.frame(k)).state);
+    results.push_back(engine.step(scene.frame(k)));
   }
+  return results;
+}
+
+/// The track state after each frame of the pendulum whose evidence follows `script` from frame 10 on.
+std::vector<TrackState> statesUnder(const std::vector<double>& script)
+{
+  std::vector<TrackState> states;
+  for (const FrameResult& r : resultsUnder(script))
+    states.push_back(r.state);
   return states;
 }
 }  // namespace
@@ -587,4 +595,40 @@ TEST(EngineTrackState, UnsureFramesNeitherCountNorBreakARunOfUnseenOnes)
   const std::vector<TrackState> interrupted = statesUnder({ 0.3, 0.55, 0.3, 0.9, 0.3, 0.55 });
   for (size_t k = 9; k < interrupted.size(); ++k)
     EXPECT_EQ(interrupted[k], TrackState::Tracking) << "frame " << k;
+}
+
+TEST(EngineTrackState, ALookAlikeScoringBelowTheObjectIsNotTakenForItOnceLost)
+{
+  // Lost (three frames at 0.1), then something scoring 0.8 (well above found_similarity, but more than
+  // reacquire_margin below what the object scored when its track began) for ten frames, then the object itself.
+  const EngineConfig defaults;
+  ASSERT_LT(defaults.reacquire_margin, 0.5);
+  std::vector<double> script{ 0.1, 0.1, 0.1 };
+  script.resize(13, 0.8);
+  script.resize(15, 1.0);
+  const std::vector<FrameResult> r = resultsUnder(script);
+  const double reference = r[0].evidence;  // the first frame of the track, from the box
+  ASSERT_EQ(r[0].state, TrackState::Tracking);
+  ASSERT_GT(reference - defaults.reacquire_margin, 0.8) << "the pendulum's ball scores " << reference;
+  EXPECT_EQ(r[12].state, TrackState::Lost);
+  for (int k = 13; k < 23; ++k)
+  {
+    EXPECT_EQ(r[k].state, TrackState::Lost) << "frame " << k << ": the look-alike was taken for the object";
+    EXPECT_EQ(r[k].support, Support::Unsure) << "frame " << k;
+  }
+  EXPECT_EQ(r[24].state, TrackState::Tracking) << "the object itself, two frames";
+  // With the margin at 1 only found_similarity holds: the look-alike is found in found_frames.
+  EngineConfig loose;
+  loose.reacquire_margin = 1.0;
+  const std::vector<FrameResult> taken = resultsUnder(script, loose);
+  EXPECT_EQ(taken[12].state, TrackState::Lost);
+  EXPECT_EQ(taken[12 + loose.found_frames].state, TrackState::Tracking);
+  // A look-alike that scores as the object did on every other frame only (0.8 between) is not found either: an
+  // unsure frame breaks the run of seen ones while the track is being found again.
+  std::vector<double> flicker{ 0.1, 0.1, 0.1 };
+  for (int k = 0; k < 10; ++k)
+    flicker.push_back(k % 2 ? 0.8 : 1.0);
+  const std::vector<FrameResult> f = resultsUnder(flicker);
+  for (int k = 13; k < 23; ++k)
+    EXPECT_EQ(f[k].state, TrackState::Lost) << "frame " << k;
 }

@@ -143,6 +143,10 @@ const std::vector<EngineField>& engineFields()
                                "switch to tracking"),
     intField<&C::lost_frames>("lost_frames", 1, 1000, false,
                               "unseen frames, no seen one between, to switch to lost"),
+    doubleField<&C::reacquire_margin>("reacquire_margin", 0.0, 1.0, true,
+                                      "once tracked, found again (searching or lost) only with evidence within "
+                                      "this of the object's when its first track began (1: found_similarity "
+                                      "alone)"),
     doubleField<&C::respawn_fraction>("respawn_fraction", 0.0, 1.0, true,
                                       "fraction of each set redrawn from the prior every frame while not tracking"),
     doubleField<&C::tracking_respawn_fraction>("tracking_respawn_fraction", 0.0, 1.0, false,
@@ -310,6 +314,7 @@ bool FilterEngine::learnTarget(const StereoFrame& frame, const cv::Rect& roi, st
       return false;
     }
   }
+  track_reference_ = -1.0;
   if (!config_.acquire)
   {
     cue_trust_.assign(observation_models_.size(), 1.0);
@@ -485,6 +490,7 @@ bool FilterEngine::loadTarget(const std::string& path, std::string& error)
       const double value = !t.empty() && t.isReal() ? static_cast<double>(t) : 1.0;
       cue_trust_[k] = std::isfinite(value) ? std::clamp(value, 0.0, 1.0) : 1.0;
     }
+    track_reference_ = -1.0;
     return true;
   }
   catch (const cv::Exception& e)
@@ -660,7 +666,13 @@ Support FilterEngine::judge(double evidence, double contrast, bool background_me
   // Evidence the background explains as well is no evidence (a target learned from a box of wall).
   if (background_measured && contrast < config_.background_margin)
     return Support::LikeBackground;
-  return evidence >= config_.found_similarity ? Support::Seen : Support::Unsure;
+  if (evidence < config_.found_similarity)
+    return Support::Unsure;
+  // Found again only by what scores as the object did: a look-alike of lower evidence is not it.
+  if (state_ != TrackState::Tracking && track_reference_ >= 0.0 &&
+      evidence < track_reference_ - config_.reacquire_margin)
+    return Support::Unsure;
+  return Support::Seen;
 }
 
 void FilterEngine::updateTrackState(Support support, FrameResult& result)
@@ -681,7 +693,10 @@ void FilterEngine::updateTrackState(Support support, FrameResult& result)
     // metres off the ball because every unsure frame restarted the count).
     const bool seen = support == Support::Seen;
     const bool unseen = support == Support::LowEvidence || support == Support::LikeBackground;
-    seen_count_ = seen ? seen_count_ + 1 : unseen ? 0 : seen_count_;
+    // Finding a target again that has been tracked takes found_frames seen ones in a row: a look-alike that
+    // scores as the object did on one frame in a few is not it.
+    const bool refound = state_ != TrackState::Tracking && track_reference_ >= 0.0;
+    seen_count_ = seen ? seen_count_ + 1 : (unseen || refound) ? 0 : seen_count_;
     unseen_count_ = unseen ? unseen_count_ + 1 : seen ? 0 : unseen_count_;
     if (state_ != TrackState::Tracking && seen_count_ >= config_.found_frames)
       state_ = TrackState::Tracking;
@@ -993,6 +1008,8 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
   }
   result.support = support;
   updateTrackState(support, result);
+  if (track_reference_ < 0.0 && support == Support::Seen && state_ == TrackState::Tracking)
+    track_reference_ = result.evidence;
   if (support == Support::Seen && state_ == TrackState::Tracking)
     adaptTargets();
   last_estimate_ = state_ == TrackState::Tracking ? result.estimate : StateEstimate{};

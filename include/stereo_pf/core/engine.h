@@ -38,7 +38,8 @@ std::string toString(TrackState state);
 /// What one frame's evidence says about the object (FrameResult::support); decides the track state.
 enum class Support
 {
-  Seen,            ///< evidence >= found_similarity and above the background by background_margin
+  Seen,            ///< evidence >= found_similarity and above the background by background_margin; while not
+                   ///< tracking, also within reacquire_margin of the track's reference evidence
   Unsure,          ///< between the thresholds: neither counts towards nor breaks a run of seen or unseen frames
   LowEvidence,     ///< evidence < lost_similarity
   LikeBackground,  ///< background locations score as well as the best particle (within background_margin)
@@ -60,6 +61,11 @@ struct EngineConfig
   double lost_similarity = 0.45;      ///< below this counts as "object not seen"
   int found_frames = 2;               ///< seen frames, no unseen one between, to switch to Tracking
   int lost_frames = 3;                ///< unseen frames, no seen one between, to switch to Lost
+  /// Once the target has been tracked, finding it again (from Searching or Lost) needs evidence within this of
+  /// what the object showed when its first track began (track_reference), besides found_similarity: a
+  /// look-alike or a patch of backdrop that scores well above found_similarity, but below the object itself,
+  /// is not taken for it while it is hidden. 1: found_similarity alone.
+  double reacquire_margin = 0.1;
   double respawn_fraction = 0.2;      ///< fraction of each set redrawn every frame while not Tracking
   /// While Tracking: the share of each set moved every frame to where the cues' target maps see the target
   /// (the recovery search: a fast object's jump, a bounce, the real object beside a distractor), each with the
@@ -297,6 +303,9 @@ private:
   int seen_count_ = 0;
   int unseen_count_ = 0;
   int state_frames_ = 0;
+  /// The evidence on the first seen frame of the first track since the target was learned or loaded (-1: none
+  /// yet): what the object itself scores, the measure a re-acquisition is held to (reacquire_margin).
+  double track_reference_ = -1.0;
   ViewingVolume volume_;
   /// The last acquisition from a box (its match: acquisition_), applied at the next step.
   struct Acquired
