@@ -35,6 +35,56 @@ TEST(ParticleSet, AllZeroOrNanFallsBackToUniform)
   EXPECT_DOUBLE_EQ(p.effectiveSampleSize(), 4.0);
 }
 
+TEST(ParticleSet, TemperingKeepsTheEssAtItsFloorAndTheOrderOfTheWeights)
+{
+  // 100 particles, log-likelihoods 0, -1, ..., -99 (times 10): untempered one particle takes nearly all the
+  // weight. Tempered to an ESS of 20, the exponent is the largest that keeps 20 (to the bisection's step), the
+  // weights keep their order, and a particle the viewing volume ruled out (-inf) keeps none.
+  const int n = 100;
+  ParticleSet p;
+  p.resize(n, 1);
+  Eigen::VectorXd prior = Eigen::VectorXd::Zero(n);
+  auto likelihood = [&] {
+    for (int i = 0; i < n; ++i)
+      p.log_weights[i] = -10.0 * i;
+    p.log_weights[5] = -std::numeric_limits<double>::infinity();
+  };
+  likelihood();
+  p.normalise();
+  ASSERT_LT(p.effectiveSampleSize(), 1.1);
+  likelihood();
+  const double beta = p.temper(prior, 20.0);
+  EXPECT_GT(beta, 0.0);
+  EXPECT_LT(beta, 0.1);
+  EXPECT_GE(p.effectiveSampleSize(), 20.0);
+  EXPECT_NEAR(p.weights.sum(), 1.0, 1e-12);
+  EXPECT_EQ(p.weights[5], 0.0);
+  for (int i = 1; i < n; ++i)
+  {
+    if (i != 5 && i != 6)
+    {
+      EXPECT_GT(p.weights[i - 1], p.weights[i]) << i;
+    }
+  }
+  // The largest such exponent: a little more (one bisection step and a bit) leaves an ESS below 20.
+  likelihood();
+  for (int i = 0; i < n; ++i)
+    p.log_weights[i] *= beta + 2.0 / 1024.0;
+  p.normalise();
+  EXPECT_LT(p.effectiveSampleSize(), 20.0);
+  // A prior that is not uniform stays as it was: only the likelihood is tempered.
+  prior[0] = std::log(0.5);
+  likelihood();
+  p.log_weights += prior;
+  p.temper(prior, 20.0);
+  EXPECT_GE(p.effectiveSampleSize(), 20.0);
+  // When the likelihood already leaves the ESS, nothing changes (exponent 1).
+  for (int i = 0; i < n; ++i)
+    p.log_weights[i] = -0.001 * i;
+  EXPECT_EQ(p.temper(Eigen::VectorXd::Zero(n), 20.0), 1.0);
+  EXPECT_NEAR(p.weights[0] / p.weights[1], std::exp(0.001), 1e-12);
+}
+
 TEST(Resampling, SystematicCountsAreWithinOneOfExpected)
 {
   // Systematic resampling's defining property: particle i is copied floor(N w_i) or ceil(N w_i) times.

@@ -115,6 +115,9 @@ const std::vector<EngineField>& engineFields()
     intField<&C::particles>("particles", 1, 1000000, true, "particles per set (a change restarts the filter)"),
     doubleField<&C::resample_threshold>("resample_threshold", 0.0, 1.0, true,
                                         "resample when ESS < threshold x N (1: every frame, as the thesis; 0: never)"),
+    doubleField<&C::min_ess>("min_ess", 0.0, 1.0, true,
+                             "while tracking with refining cues, the other cues' likelihood is raised to the largest "
+                             "power in (0, 1] leaving an ESS of at least min_ess x N (0: off)"),
     { { "estimator", ParameterSpec::Type::String, "", 0.0, 0.0, { "mean", "sum_inverse_distances", "density" },
         "point estimator: mean (thesis 6.4.1), sum_inverse_distances (6.4.2, O(N^2)) or density (6.4.3)", true },
       [](const EngineField& f, const Parameters& p, EngineConfig& c) {
@@ -860,6 +863,7 @@ double FilterEngine::refineSecondStage(const StereoGeometry& geometry, int s, Re
 {
   ParticleSet& p = sets_[s];
   const double log_marginal = p.normalise();
+  coarse_sets_[s] = p;  // what the other cues allow: its spread is part of the published uncertainty
   const Eigen::MatrixXd cov = weightedCovariance(p.states, p.weights, weightedMean(p.states, p.weights));
   systematicResample(p, rng_, resample_indices_, resample_scratch_);
   jitter(p, cov, config_.refine_jitter, rng_);
@@ -945,6 +949,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     return m.enabled() && (tracking || !m.onlyWhileTracking()) &&
            (tracking || !refining(m) || config_.refine_search_weight > 0.0);
   };
+  coarse_sets_.resize(sets_.size());
   const bool two_stage = tracking && std::any_of(observation_models_.begin(), observation_models_.end(),
                                                  [&](const std::shared_ptr<ObservationModel>& m) {
                                                    return active(*m) && refining(*m);
@@ -961,6 +966,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     const int n = p.size();
     // The previous weights are the prior of this step (uniform after resampling).
     p.log_weights = p.weights.array().log();
+    prior_log_ = p.log_weights;
     sum_sim_.setZero(n);
     scratch_ll_.resize(n);
     scratch_sim_.resize(n);
@@ -970,6 +976,8 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
       return refining(m) ? Use{ config_.refine_search_weight, false } : Use{ 1.0, true };
     });
     escaped = boundToViewingVolume(s) == 0 || escaped;
+    if (two_stage)
+      p.temper(prior_log_, config_.min_ess * n);
     // Evidence that the object is seen: the best particle's mean similarity over cues and views; for
     // several sets (left and right images) the object must be seen in all of them.
     Eigen::Index best_index = -1;
@@ -1000,6 +1008,15 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     result.ess = std::min(result.ess, p.effectiveSampleSize());
 
   result.estimate = state_model_->estimate(geometry, sets_, config_.estimator, config_.density_radius);
+  if (two_stage && result.estimate.valid)
+  {
+    // The refining cues place the object within the region the other cues allow, more precisely than they can
+    // vouch for (their likelihoods are untempered: tempered, the precision they give is lost). The published
+    // uncertainty is that region's spread plus theirs.
+    const StateEstimate coarse = state_model_->estimate(geometry, coarse_sets_, Estimator::Mean, 0.0);
+    if (coarse.valid)
+      result.estimate.covariance += coarse.covariance;
+  }
   Support support = judge(result.evidence, contrast, background_measured);
   if (escaped || (result.estimate.valid && !volume_.containsDepth(result.estimate.position.z())))
   {

@@ -55,4 +55,32 @@ double ParticleSet::effectiveSampleSize() const
   return s > 0.0 ? 1.0 / s : 0.0;
 }
 
+double ParticleSet::temper(const Eigen::VectorXd& prior_log, double min_ess)
+{
+  normalise();
+  const int n = size();
+  if (!(min_ess > 0.0) || effectiveSampleSize() >= min_ess || prior_log.size() != n)
+    return 1.0;
+  const Eigen::VectorXd full = log_weights;
+  auto weigh = [&](double beta) {
+    for (int i = 0; i < n; ++i)
+    {
+      const double prior = prior_log[i];
+      const double likelihood = full[i] - prior;
+      log_weights[i] = std::isfinite(prior) && std::isfinite(full[i]) ? prior + beta * likelihood : full[i];
+    }
+    normalise();
+    return effectiveSampleSize();
+  };
+  double lo = 0.0, hi = 1.0;  // weigh(lo) keeps min_ess (the prior's spread, or as near as it comes)
+  for (int k = 0; k < 10; ++k)
+  {
+    const double mid = 0.5 * (lo + hi);
+    (weigh(mid) >= min_ess ? lo : hi) = mid;
+  }
+  const double beta = std::max(lo, 1.0 / 1024.0);
+  weigh(beta);
+  return beta;
+}
+
 }  // namespace stereo_pf

@@ -53,6 +53,13 @@ struct EngineConfig
 {
   int particles = 1000;               ///< per set
   double resample_threshold = 1.0;    ///< resample when ESS < threshold * N (1.0: every frame, as the thesis)
+  /// Likelihood tempering of the first stage of a frame with refining cues (while tracking): the other cues'
+  /// likelihood is raised to the largest power in (0, 1] that leaves an ESS of at least min_ess * N. They
+  /// count every pixel as independent evidence, far sharper than what they know: untempered, a handful of
+  /// particles took the weight, and the refining cues then searched only around those. The refining cues
+  /// themselves stay untempered (tempered, the precision they give was lost: the pendulum 0.5 -> 1 cm); the
+  /// published covariance adds the first stage's spread to theirs instead. 0: off.
+  double min_ess = 0.1;
   Estimator estimator = Estimator::Mean;
   double density_radius = 0.03;       ///< radius of the density estimate, in state units (m, or px for 2D sets)
   unsigned long seed = 1;             ///< RNG seed
@@ -65,7 +72,7 @@ struct EngineConfig
   /// what the object showed when its first track began (track_reference), besides found_similarity: a
   /// look-alike or a patch of backdrop that scores well above found_similarity, but below the object itself,
   /// is not taken for it while it is hidden. 1: found_similarity alone.
-  double reacquire_margin = 0.1;
+  double reacquire_margin = 0.05;
   double respawn_fraction = 0.2;      ///< fraction of each set redrawn every frame while not Tracking
   /// While Tracking: the share of each set moved every frame to where the cues' target maps see the target
   /// (the recovery search: a fast object's jump, a bounce, the real object beside a distractor), each with the
@@ -287,6 +294,7 @@ private:
   FeatureCache cache_;
   std::vector<ParticleSet> sets_;
   std::vector<ParticleSet> weighted_sets_;  ///< sets_ before the last step's final resampling
+  std::vector<ParticleSet> coarse_sets_;    ///< with refining cues: the sets as the other cues weighed them
   std::vector<std::vector<ImageHypotheses>> hypotheses_;
   bool initialised_ = false;
   double last_stamp_ = 0.0;
@@ -323,7 +331,7 @@ private:
   MapProposals map_proposals_;
 
   // scratch buffers kept across frames
-  Eigen::VectorXd scratch_ll_, scratch_sim_, sum_sim_;
+  Eigen::VectorXd scratch_ll_, scratch_sim_, sum_sim_, prior_log_;
   ImageHypotheses background_hyp_, adapt_hyp_;
   Eigen::VectorXd background_ll_, background_sim_, background_sum_;
   std::vector<double> background_values_;

@@ -29,6 +29,10 @@ struct ParticleSet
   double normalise();
   /// Effective sample size 1 / sum(w^2) of the normalised weights.
   double effectiveSampleSize() const;
+  /// Likelihood tempering: log_weights are prior_log plus a log-likelihood; scale that likelihood by the
+  /// largest exponent in (0, 1] whose weights keep an effective sample size of at least min_ess (found by
+  /// bisection, to 1/1024), and normalise. Returns the exponent (1: untouched). -inf terms stay -inf.
+  double temper(const Eigen::VectorXd& prior_log, double min_ess);
 };
 
 }  // namespace stereo_pf
