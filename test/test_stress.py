@@ -110,6 +110,24 @@ class Metrics(unittest.TestCase):
         visible_after = 60 - 15
         self.assertAlmostEqual(g["no_estimate_pct"], 100.0 * 4 / visible_after, places=6)
 
+    def test_truth_inside_the_95_percent_ellipsoid_of_the_full_covariance_while_tracking(self):
+        head = "frame,stamp,x,y,z,sxx,syy,szz,u_left,v_left,u_right,v_right,ess,state,ms,sxy,sxz,syz,gt_x,gt_y,gt_z,err"
+        rows = [  # (estimate, sxx syy szz, sxy sxz syz, state); the truth is (0, 0, 2)
+            ((0.0, 0.0, 2.1), (0.01, 0.01, 0.01), (0.0, 0.0, 0.0), "tracking"),      # 1 sigma in z: inside
+            ((0.0, 0.0, 2.4), (0.01, 0.01, 0.01), (0.0, 0.0, 0.0), "tracking"),      # 4 sigma: outside
+            # x and z strongly correlated: inside by the diagonal alone (chi-square 2), far outside the ellipsoid
+            ((0.1, 0.0, 1.9), (0.01, 0.01, 0.01), (0.0, 0.0099, 0.0), "tracking"),
+            ((0.0, 0.0, 2.0), (0.01, 0.01, 0.01), (0.0, 0.0, 0.0), "lost"),          # not tracking: not judged
+        ]
+        lines = [head]
+        for k, (e, v, c, state) in enumerate(rows):
+            lines.append("%d,%d,%s,%s,,,,,1,%s,1.5,%s,0,0,2,0.1" % (k, 1000 + k, ",".join(map(str, e)),
+                                                                   ",".join(map(str, v)), state, ",".join(map(str, c))))
+        d = read_csv(io.StringIO("\n".join(lines) + "\n"))
+        g = stress.score(d, [True] * len(rows), [])
+        self.assertEqual(g["tracked_frames"], 3)
+        self.assertEqual(g["covered_frames"], 1)
+
     def test_wrong_object_lock_needs_five_frames_near_the_other_object(self):
         other = (0.4, 0.0, 2.0)
         est = [(0.0, 0.0, 2.0)] * 10 + [(0.41, 0.0, 2.0)] * 4 + [(0.0, 0.0, 2.0)] * 10 + [(0.41, 0.0, 2.0)] * 6 + \

@@ -34,16 +34,17 @@ const char* kUsage =
     "  --target-frame K         (default 0; without --target-roi the bag's ground_truth/target_roi of frame K)\n"
     "  --target-model FILE      load a saved target instead     --save-target FILE   save the learned one\n"
     "  --output CSV             one row per frame: the estimate, its variances and images, ess, state, ms, the\n"
-    "                           evidence and background similarity and what they said (support), the truth;\n"
-    "                           x..szz only while tracking (what the nodelet publishes as valid)\n"
+    "                           evidence and background similarity and what they said (support), the\n"
+    "                           covariances sxy, sxz, syz, the truth; x..szz and sxy..syz only while tracking\n"
+    "                           (what the nodelet publishes as valid)\n"
     "  --left-image T --right-image T --left-info T --right-info T --truth T   topic overrides\n"
     "  --rectified              images are already rectified (e.g. stereo_image_proc's image_rect_color)\n"
     "  --quiet                  only the summary line\n"
     "  --baseline NAME          instead of a particle filter, OpenCV's csrt, kcf or camshift in each image, both\n"
     "                           started from the target box (right box by template matching), centres triangulated;\n"
     "                           the filter's options (--config --set --state --particles --seed --target-model\n"
-    "                           --save-target) are refused with it. CSV: sxx..szz, ess, evidence and background\n"
-    "                           are empty, and x..szz too in frames without a 3D estimate (state lost)\n";
+    "                           --save-target) are refused with it. CSV: sxx..szz, ess, evidence, background and\n"
+    "                           sxy..syz are empty, and x..szz too in frames without a 3D estimate (state lost)\n";
 
 struct Options
 {
@@ -202,7 +203,7 @@ stereo_pf::Parameters buildParameters(const Options& o)
 struct StepResult
 {
   std::optional<Eigen::Vector3d> position;  ///< the 3D estimate, when valid
-  std::optional<Eigen::Vector3d> variance;  ///< its variances along x, y, z, m^2
+  std::optional<Eigen::Matrix3d> covariance;  ///< its covariance, m^2
   std::optional<stereo_pf::Pixel> left, right;  ///< the estimate in each image
   std::optional<double> ess;                ///< effective sample size
   std::optional<double> evidence, background;  ///< FrameResult's evidence and background similarity
@@ -273,7 +274,7 @@ public:
     if (r.published())  // as the nodelet publishes it
     {
       s.position = r.estimate.position;
-      s.variance = r.estimate.covariance.diagonal();
+      s.covariance = r.estimate.covariance;
     }
     s.left = r.estimate.left;
     s.right = r.estimate.right;
@@ -340,7 +341,8 @@ public:
     csv_.open(path);
     if (!csv_)
       throw std::runtime_error("cannot write '" + path + "'");
-    csv_ << "frame,stamp,x,y,z,sxx,syy,szz,u_left,v_left,u_right,v_right,ess,state,ms,evidence,background,support";
+    csv_ << "frame,stamp,x,y,z,sxx,syy,szz,u_left,v_left,u_right,v_right,ess,state,ms,evidence,background,support,"
+            "sxy,sxz,syz";
     if (with_truth_)
       csv_ << ",gt_x,gt_y,gt_z,err";
     csv_ << "\n";
@@ -374,8 +376,11 @@ private:
     csv_ << bf.index << "," << bf.frame.stamp;
     for (int i = 0; i < 3; ++i)
       field(r.position ? std::optional<double>((*r.position)[i]) : std::nullopt);
+    auto covariance = [&](int i, int j) {
+      return r.covariance ? std::optional<double>((*r.covariance)(i, j)) : std::nullopt;
+    };
     for (int i = 0; i < 3; ++i)
-      field(r.variance ? std::optional<double>((*r.variance)[i]) : std::nullopt);
+      field(covariance(i, i));
     for (const auto& px : { r.left, r.right })
     {
       field(px ? std::optional<double>(px->u) : std::nullopt);
@@ -386,6 +391,9 @@ private:
     field(r.evidence);
     field(r.background);
     csv_ << "," << r.support;
+    field(covariance(0, 1));
+    field(covariance(0, 2));
+    field(covariance(1, 2));
     if (with_truth_)
     {
       if (bf.has_truth)
