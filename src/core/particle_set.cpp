@@ -61,25 +61,33 @@ double ParticleSet::temper(const Eigen::VectorXd& prior_log, double min_ess)
   const int n = size();
   if (!(min_ess > 0.0) || effectiveSampleSize() >= min_ess || prior_log.size() != n)
     return 1.0;
-  const Eigen::VectorXd full = log_weights;
-  auto weigh = [&](double beta) {
+  // The ESS of the weights prior + beta * likelihood, from one pass of exponentials (no weights written).
+  auto ess = [&](double beta) {
+    double top = -std::numeric_limits<double>::infinity();
     for (int i = 0; i < n; ++i)
-    {
-      const double prior = prior_log[i];
-      const double likelihood = full[i] - prior;
-      log_weights[i] = std::isfinite(prior) && std::isfinite(full[i]) ? prior + beta * likelihood : full[i];
-    }
-    normalise();
-    return effectiveSampleSize();
+      if (std::isfinite(prior_log[i]) && std::isfinite(log_weights[i]))
+        top = std::max(top, prior_log[i] + beta * (log_weights[i] - prior_log[i]));
+    double sum = 0.0, sum2 = 0.0;
+    for (int i = 0; i < n; ++i)
+      if (std::isfinite(prior_log[i]) && std::isfinite(log_weights[i]))
+      {
+        const double w = std::exp(prior_log[i] + beta * (log_weights[i] - prior_log[i]) - top);
+        sum += w;
+        sum2 += w * w;
+      }
+    return sum2 > 0.0 ? sum * sum / sum2 : 0.0;
   };
-  double lo = 0.0, hi = 1.0;  // weigh(lo) keeps min_ess (the prior's spread, or as near as it comes)
+  double lo = 0.0, hi = 1.0;  // ess(lo) keeps min_ess (the prior's spread, or as near as it comes)
   for (int k = 0; k < 10; ++k)
   {
     const double mid = 0.5 * (lo + hi);
-    (weigh(mid) >= min_ess ? lo : hi) = mid;
+    (ess(mid) >= min_ess ? lo : hi) = mid;
   }
   const double beta = std::max(lo, 1.0 / 1024.0);
-  weigh(beta);
+  for (int i = 0; i < n; ++i)
+    if (std::isfinite(prior_log[i]) && std::isfinite(log_weights[i]))
+      log_weights[i] = prior_log[i] + beta * (log_weights[i] - prior_log[i]);
+  normalise();
   return beta;
 }
 
