@@ -18,6 +18,9 @@
 #include "stereo_pf/plugins/colour_contour.h"
 #include "stereo_pf/plugins/colour_hsi.h"
 #include "stereo_pf/plugins/position_3d.h"
+#include "stereo_pf/plugins/stereo_match.h"
+#include "stereo_pf/plugins/template_match.h"
+#include "stereo_pf/plugins/velocity_3d.h"
 
 using namespace stereo_pf;
 
@@ -631,4 +634,62 @@ TEST(EngineTrackState, ALookAlikeScoringBelowTheObjectIsNotTakenForItOnceLost)
   const std::vector<FrameResult> f = resultsUnder(flicker);
   for (int k = 13; k < 23; ++k)
     EXPECT_EQ(f[k].state, TrackState::Lost) << "frame " << k;
+}
+
+namespace
+{
+/// scenes/turning_box.yaml (a 10 cm box, one turn in 8 s about the vertical, each side face another colour)
+/// tracked by the default state model and cues (Velocity3D; colour histogram, template, outline, stereo match), the
+/// histogram adapting at
+/// `colour_adapt_rate`. `kept`: the last frame of the first track with the estimate within the box's edge (10 cm)
+/// of its centre (the cues see its faces, up to half an edge in front of the centre); `refound`: the first frame
+/// after frame 150 tracked that near (-1: none).
+void trackTurningBox(double colour_adapt_rate, int& kept, int& refound)
+{
+  Scene scene("turning_box.yaml");
+  Parameters colour_params;
+  colour_params.set("colour/adapt_rate", colour_adapt_rate);
+  auto colour = std::make_shared<ColourHSI>();
+  colour->initialize("colour", colour_params.sub("colour"));
+  auto state = std::make_shared<Velocity3D>();
+  state->initialize("state_model", Parameters());
+  FilterEngine engine(state,
+                      { colour, cue<TemplateMatch>("template"), cue<ColourContour>("colour_contour"),
+                        cue<StereoMatch>("stereo") },
+                      EngineConfig());
+  std::string error;
+  ASSERT_TRUE(engine.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
+  kept = -1;
+  refound = -1;
+  bool first = true;
+  for (int k = 0; k < 240; ++k)
+  {
+    const FrameResult r = engine.step(scene.frame(k));
+    const bool on = r.state == TrackState::Tracking && r.estimate.valid &&
+                    (r.estimate.position - scene.renderer().targetPosition(k)).norm() < 0.1;
+    if (first && on)
+      kept = k;
+    first = first && on;
+    if (k > 150 && on && refound < 0)
+      refound = k;
+  }
+}
+}  // namespace
+
+TEST(EngineAdaptation, ATurningBoxIsKeptPastItsNextFaceAndFoundAgainByItsFirst)
+{
+  // The front face turns away from frame 0 (45 deg/s at 30 fps); a side face of another colour faces the camera
+  // at frame 60, the back face at 120, the other side at 180, and the front face is half turned back at frame
+  // 210. Without adaptation the histogram of the front face loses the box as the side face turns in; adapting,
+  // it is kept past that face, and lost, it is searched for by the front face again (forgetAdaptation) and found
+  // within 15 frames of frame 210.
+  int kept = 0, refound = 0, kept_fixed = 0, refound_fixed = 0;
+  trackTurningBox(0.1, kept, refound);
+  trackTurningBox(0.0, kept_fixed, refound_fixed);
+  std::printf("turning box: adapting, kept to frame %d, found again at %d; fixed histogram, kept to %d, found again at "
+              "%d\n", kept, refound, kept_fixed, refound_fixed);
+  EXPECT_GE(kept, 90) << "the side face's colour was not followed";
+  EXPECT_LT(kept_fixed, kept);
+  EXPECT_GE(refound, 200);
+  EXPECT_LE(refound, 225) << "not found again by its first face";
 }

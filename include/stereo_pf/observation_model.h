@@ -78,6 +78,10 @@ public:
   /// hypothesis: that set's best-weighted particle. A model that adapts must stay anchored to what it learned from
   /// the box. Default: nothing.
   virtual void adapt(FeatureCache& /*cache*/, const ImageHypotheses& /*estimate*/) {}
+  /// Optional: the track was lost; an adapting model goes back to what it learned from the box, which is what the
+  /// object is searched for by (a turning box is found again by its first face, not by the last one seen).
+  /// Default: nothing.
+  virtual void forgetAdaptation() {}
 
   /// Write the learned target under this plugin's name into an open cv::FileStorage.
   virtual void saveTarget(cv::FileStorage& fs) const = 0;

@@ -53,6 +53,15 @@ ColourHSI::Tunables ColourHSI::readTunables() const
   t.surround_samples = p.getInt("surround_samples", 32, 4, 256, "points sampled on that ring");
   t.surround_weight = p.getDouble("surround_weight", 1.0, 0.0, 10.0,
                                   "weight of the ring's similarity to the target against the hypothesis");
+  t.adapt_rate = p.getDouble("adapt_rate", t.adapt_rate, 0.0, 1.0,
+                             "while tracked and seen, the target histogram follows the object by this much per frame "
+                             "(0: never)");
+  t.adapt_min = p.getDouble("adapt_min", t.adapt_min, 0.0, 1.0,
+                            "the histogram adapts only when the window at the estimate scores at least this against "
+                            "it (Bhattacharyya coefficient)");
+  t.anchor = p.getDouble("anchor", t.anchor, 0.0, 1.0,
+                         "share of the histogram in use that is the one learned from the box (the rest: the adapted "
+                         "one)");
   return t;
 }
 
@@ -105,14 +114,60 @@ double ColourHSI::targetProbability(int bin) const
 bool ColourHSI::learnTarget(FeatureCache& cache, View view, const cv::Rect& roi, std::string& error)
 {
   std::string reason;
-  if (!learnTargetHistogram(binImage(cache, view), roi, tunables_.target_margin, binning_.bins(), target_, reason))
+  TargetHistogram learned;
+  if (!learnTargetHistogram(binImage(cache, view), roi, tunables_.target_margin, binning_.bins(), learned, reason))
   {
     error = name() + ": cannot learn the target: " + reason;
     return false;
   }
-  ++target_version_;
+  setLearned(std::move(learned));
   learned_radius_ = 0.5f * static_cast<float>(std::min(roi.width, roi.height));
   return true;
+}
+
+void ColourHSI::setLearned(TargetHistogram learned)
+{
+  learned_ = std::move(learned);
+  target_ = learned_;
+  running_ = learned_.probabilities();
+  ++target_version_;
+}
+
+void ColourHSI::forgetAdaptation()
+{
+  if (learned_.valid())
+    setLearned(learned_);
+}
+
+void ColourHSI::adapt(FeatureCache& cache, const ImageHypotheses& estimate)
+{
+  const double rate = tunables_.adapt_rate;
+  if (!target_.valid() || !(rate > 0.0) || estimate.size() < 1 || !estimate.valid[0] || !(estimate.radius[0] > 0.0f))
+    return;
+  // The window the hypothesis is judged by (evaluate()): its histogram, over the samples' square.
+  const float r = std::max(estimate.radius[0], static_cast<float>(tunables_.min_radius));
+  const float half = static_cast<float>(tunables_.window_scale) * r;
+  const cv::Rect box(cvRound(estimate.u[0] - half), cvRound(estimate.v[0] - half), cvRound(2.0f * half) + 1,
+                     cvRound(2.0f * half) + 1);
+  const cv::Mat& bins = binImage(cache, estimate.view, std::max(0, box.y), box.y + box.height);
+  const TargetHistogram seen = TargetHistogram::fromBinImage(bins, box, binning_.bins());
+  if (!seen.valid())
+    return;
+  const std::vector<double>& now = target_.probabilities();
+  const std::vector<double>& obs = seen.probabilities();
+  double rho = 0.0;
+  for (size_t b = 0; b < now.size(); ++b)
+    rho += std::sqrt(now[b] * obs[b]);
+  if (rho < tunables_.adapt_min)
+    return;  // not confidently the object: the target stays
+  std::vector<double> use(running_.size());
+  for (size_t b = 0; b < running_.size(); ++b)
+  {
+    running_[b] = (1.0 - rate) * running_[b] + rate * obs[b];
+    use[b] = tunables_.anchor * learned_.probabilities()[b] + (1.0 - tunables_.anchor) * running_[b];
+  }
+  target_ = TargetHistogram(use);
+  ++target_version_;
 }
 
 void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
@@ -228,7 +283,7 @@ void ColourHSI::saveTarget(cv::FileStorage& fs) const
   fs << name() << "{";
   fs << "type" << "stereo_pf/ColourHSI";
   binning_.write(fs);
-  fs << "histogram" << target_.probabilities();
+  fs << "histogram" << learned_.probabilities();  // what the box showed, not what adaptation made of it
   fs << "learned_radius" << static_cast<double>(learned_radius_);  // the 2D hypotheses' surround ring
   fs << "}";
 }
@@ -265,8 +320,7 @@ bool ColourHSI::loadTarget(const cv::FileNode& node, std::string& error)
       error = name() + ": colour target histogram is all zero";
       return false;
     }
-    target_ = std::move(t);
-    ++target_version_;
+    setLearned(std::move(t));
     // Older files have no radius: then 2D hypotheses are judged without the surround ring.
     learned_radius_ = m["learned_radius"].isReal() || m["learned_radius"].isInt() ?
                           static_cast<float>(static_cast<double>(m["learned_radius"])) :

@@ -214,6 +214,12 @@ void TemplateMatch::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Ei
   }
 }
 
+void TemplateMatch::forgetAdaptation()
+{
+  running_ = learned_;
+  useTemplate();
+}
+
 void TemplateMatch::adapt(FeatureCache& cache, const ImageHypotheses& estimate)
 {
   if (current_.empty() || tunables_.adapt_rate <= 0.0 || estimate.size() < 1 || !estimate.valid[0])

@@ -714,6 +714,10 @@ void FilterEngine::updateTrackState(Support support, FrameResult& result)
       }
     }
   }
+  // A lost track is searched for by what was learned from the box, not by what adaptation last made of it.
+  if (state_ == TrackState::Lost && before != TrackState::Lost)
+    for (auto& m : observation_models_)
+      m->forgetAdaptation();
   state_frames_ = state_ == before ? state_frames_ + 1 : 1;
   result.state = state_;
   result.state_frames = state_frames_;

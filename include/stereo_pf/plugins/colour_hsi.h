@@ -53,8 +53,15 @@ namespace stereo_pf
 /// achromatic_intensity (0.08, 0..1), sigma (0.15, 0.001..10), window (11, odd 3..101),
 /// window_scale (0.7, 0.1..3), samples (11, 3..31), min_radius (2 px, 0.5..100),
 /// target_margin (0.15, 0..0.45), surround_scale (1.25; 0 = off, else 1..4), surround_margin (3 px, 0..100),
-/// surround_samples (32, 4..256), surround_weight (1.0, 0..10). The binning is structural (a learned target is
-/// tied to it) and is read at initialisation only; reconfigure() re-reads the others.
+/// surround_samples (32, 4..256), surround_weight (1.0, 0..10), adapt_rate (0: off, 0..1), adapt_min (0.6, 0..1),
+/// anchor (0.3, 0..1). The binning is structural (a learned target is tied to it) and is read at initialisation
+/// only; reconfigure() re-reads the others.
+///
+/// Adaptation (adapt(), on the frames the engine calls the object seen): when the histogram of the window at the
+/// estimate scores at least adapt_min against the target in use, a running histogram moves towards it by
+/// adapt_rate; the target in use is `anchor` parts the one learned from the box and the rest the running one, so
+/// a box turning a face of another colour to the camera is followed, and its first face still scores when it
+/// comes back. Target files hold the histogram learned from the box.
 class ColourHSI : public ObservationModel
 {
 public:
@@ -79,6 +86,10 @@ public:
   /// Re-read the common parameters and the tunables (everything but the binning); on a bad value throws
   /// ParameterError and keeps the previous settings.
   void reconfigure() override;
+  /// Follow the object's colours at the estimate (see the class comment).
+  void adapt(FeatureCache& cache, const ImageHypotheses& estimate) override;
+  /// Back to the target learned from the box (the track was lost).
+  void forgetAdaptation() override;
 
   /// Target probability q_b of bin `b` (0 without a target or for an out-of-range bin): the
   /// back-projection of the target, e.g. for detection-driven proposals.
@@ -104,7 +115,12 @@ private:
     double surround_margin = 3.0;
     int surround_samples = 32;
     double surround_weight = 1.0;
+    double adapt_rate = 0.0;
+    double adapt_min = 0.6;
+    double anchor = 0.3;
   };
+  /// A new target learned or loaded: adaptation starts afresh from it.
+  void setLearned(TargetHistogram learned);
   Tunables readTunables() const;
   void applyTunables(const Tunables& t);
 
@@ -112,7 +128,9 @@ private:
   std::unique_ptr<const HsiBinner> binner_;  // LUT, built once in onInitialize (not at construction: ~10 ms)
   std::string cache_key_;     // FeatureCache key of the bin image, encodes the binning
   Tunables tunables_;
-  TargetHistogram target_;
+  TargetHistogram target_;     // in use: anchor parts learned_, the rest running_
+  TargetHistogram learned_;    // from the box (or the target file)
+  std::vector<double> running_;  // the adapted histogram
   double invalid_log_likelihood_ = 0.0;  // log-likelihood of rho = 0
   // scratch, sized in applyTunables: no allocation per hypothesis
   WindowGrid window_;         // the sample grid, placed per hypothesis

@@ -47,6 +47,8 @@ public:
   void evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
                 Eigen::Ref<Eigen::VectorXd> similarity) override;
   void adapt(FeatureCache& cache, const ImageHypotheses& estimate) override;
+  /// Back to the target learned from the box (the track was lost).
+  void forgetAdaptation() override;
   /// The template's correlation with the whole image at the learned box size (the engine's proposals while
   /// searching or lost): the image shrunk to at most 200 px wide, cv::matchTemplate (normalised correlation
   /// coefficient), negative values 0, scaled back to the image.
