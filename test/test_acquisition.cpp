@@ -202,6 +202,37 @@ TEST(MatchBox, ABoxWithNoCounterpartIsNoMatch)
   EXPECT_FALSE(m.error.empty());
 }
 
+TEST(MatchBox, AnObjectSeenAgainstOtherSurroundingsInEachViewIsMatchedAlone)
+{
+  // Close up, the two cameras see the object against different surroundings: here a textured patch in front of
+  // a dark wall in the left image and of a bright one in the right, 30 px of disparity. The window with its ring
+  // (the outline against the surroundings) correlates poorly; the object alone matches.
+  cv::Mat left(240, 320, CV_8UC1, cv::Scalar(30)), right(240, 320, CV_8UC1, cv::Scalar(30));
+  right(cv::Rect(100, 0, 120, 240)).setTo(cv::Scalar(230));
+  cv::Mat patch(40, 40, CV_8UC1);
+  cv::RNG rng(5);
+  rng.fill(patch, cv::RNG::UNIFORM, 90, 170);
+  cv::GaussianBlur(patch, patch, cv::Size(3, 3), 0.0);
+  patch.copyTo(left(cv::Rect(160, 100, 40, 40)));
+  patch.copyTo(right(cv::Rect(130, 100, 40, 40)));
+  StereoFrame f;
+  f.left = left;
+  f.right = right;
+  f.geometry = stereo_pf::StereoGeometry(400.0, 400.0, 160.0, 120.0, 0.1, 320, 240);
+  const cv::Rect box(160, 100, 40, 40);
+  // The window with its ring alone (no minimum, so no fallback): it scores below a match.
+  stereo_pf::BoxMatchOptions with_ring;
+  with_ring.min_score = -1.0;
+  const BoxMatch ring = matchBox(f, box, with_ring);
+  const BoxMatch m = matchBox(f, box);
+  std::cout << "[ figures  ] with the ring: correlation " << ring.score << " at disparity " << ring.disparity
+            << "; the object alone: " << m.score << " at " << m.disparity << "\n";
+  EXPECT_LT(ring.score, stereo_pf::BoxMatchOptions().min_score);
+  ASSERT_TRUE(m.ok) << m.error;
+  EXPECT_NEAR(m.disparity, 30.0, 0.5);
+  EXPECT_GT(m.score, 0.9);
+}
+
 int main(int argc, char** argv)
 {
   testing::InitGoogleTest(&argc, argv);

@@ -186,6 +186,17 @@ BoxMatch matchBox(const StereoFrame& frame, const cv::Rect& box, const BoxMatchO
   std::ostringstream why;
   why.precision(2);
   why.setf(std::ios::fixed);
+  if (m.score < o.min_score && o.ring_weight > 0.0)
+  {
+    // The ring carries the outline against what lies behind the object; close up, the two cameras see
+    // different surroundings (and sides) of it, and the ring then spoils the match: the object alone may still
+    // match (a box at 0.7 m: 0.44 with the ring, 0.57 without).
+    BoxMatchOptions core = o;
+    core.ring_weight = 0.0;
+    BoxMatch alone = matchBox(frame, box, core);
+    if (alone.ok)
+      return alone;
+  }
   if (m.score < o.min_score)
   {
     why << "no match in the right image along rows " << box.y << ".." << box.y + box.height - 1
