@@ -190,7 +190,8 @@ BoxMatch matchBox(const StereoFrame& frame, const cv::Rect& box, const BoxMatchO
   {
     // The ring carries the outline against what lies behind the object; close up, the two cameras see
     // different surroundings (and sides) of it, and the ring then spoils the match: the object alone may still
-    // match (a box at 0.7 m: 0.44 with the ring, 0.57 without).
+    // match (a cylinder 0.72 m away in a JPEG-compressed grey image: 0.44 with the ring, 0.76 without, its
+    // depth 5 % short as its two sides differ between the views).
     BoxMatchOptions core = o;
     core.ring_weight = 0.0;
     BoxMatch alone = matchBox(frame, box, core);
