@@ -153,12 +153,8 @@ void ColourHSI::adapt(FeatureCache& cache, const ImageHypotheses& estimate)
   const TargetHistogram seen = TargetHistogram::fromBinImage(bins, box, binning_.bins());
   if (!seen.valid())
     return;
-  const std::vector<double>& now = target_.probabilities();
   const std::vector<double>& obs = seen.probabilities();
-  double rho = 0.0;
-  for (size_t b = 0; b < now.size(); ++b)
-    rho += std::sqrt(now[b] * obs[b]);
-  if (rho < tunables_.adapt_min)
+  if (bhattacharyya(target_.probabilities(), obs) < tunables_.adapt_min)
     return;  // not confidently the object: the target stays
   std::vector<double> use(running_.size());
   for (size_t b = 0; b < running_.size(); ++b)
