@@ -7,6 +7,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 #include <pluginlib/class_list_macros.hpp>
 
@@ -17,6 +19,7 @@ namespace stereo_pf
 namespace
 {
 const char* const kType = "stereo_pf/TemplateMatch";
+constexpr int kMapSamples = 7;  // samples per side of the template in targetMap()
 }  // namespace
 
 void TemplateMatch::onInitialize()
@@ -90,10 +93,10 @@ void TemplateMatch::sample(const cv::Mat& gray, double u, double v, double hx, d
   const double sx = hx / c, sy = hy / c;
   int cols[41];
   for (int x = 0; x < size_; ++x)
-    cols[x] = std::clamp(static_cast<int>(std::lround(u + (x - c) * sx)), 0, gray.cols - 1);
+    cols[x] = std::clamp(cvRound(u + (x - c) * sx), 0, gray.cols - 1);
   for (int y = 0; y < size_; ++y)
   {
-    const uint8_t* row = gray.ptr<uint8_t>(std::clamp(static_cast<int>(std::lround(v + (y - c) * sy)), 0, gray.rows - 1));
+    const uint8_t* row = gray.ptr<uint8_t>(std::clamp(cvRound(v + (y - c) * sy), 0, gray.rows - 1));
     float* o = out.data() + static_cast<size_t>(y) * size_;
     for (int x = 0; x < size_; ++x)
       o[x] = row[cols[x]];
@@ -122,19 +125,15 @@ bool TemplateMatch::normalise(std::vector<float>& values) const
 
 double TemplateMatch::score(const std::vector<float>& samples) const
 {
-  // With the template zero-mean under the weights, sum w t (p - mean p) = sum w t p.
-  double st = 0.0, s = 0.0, ss = 0.0;
-  for (size_t i = 0; i < samples.size(); ++i)
-  {
-    const double w = weights_[i], p = samples[i];
-    st += w * current_[i] * p;
-    s += w * p;
-    ss += w * p * p;
-  }
-  const double var = ss - s * s / weight_sum_;
+  // With the template zero-mean under the weights, sum w t (p - mean p) = sum w t p. Two passes in float
+  // (vectorised by Eigen; the second about the mean, so no cancellation): this runs for every hypothesis.
+  const Eigen::Index n = static_cast<Eigen::Index>(samples.size());
+  const Eigen::Map<const Eigen::ArrayXf> p(samples.data(), n), w(weights_.data(), n), wt(weighted_.data(), n);
+  const float mean = (w * p).sum() / static_cast<float>(weight_sum_);
+  const double var = (w * (p - mean).square()).sum();
   if (!(var > 1e-6 * weight_sum_))
     return 0.0;
-  return std::clamp(st / std::sqrt(var), -1.0, 1.0);
+  return std::clamp(static_cast<double>((wt * p).sum()) / std::sqrt(var), -1.0, 1.0);
 }
 
 void TemplateMatch::useTemplate()
@@ -148,6 +147,9 @@ void TemplateMatch::useTemplate()
     current_[i] = static_cast<float>(tunables_.anchor * learned_[i] + (1.0 - tunables_.anchor) * running_[i]);
   if (!normalise(current_))
     current_ = learned_;
+  weighted_.resize(current_.size());
+  for (size_t i = 0; i < current_.size(); ++i)
+    weighted_[i] = weights_[i] * current_[i];
 }
 
 void TemplateMatch::setTarget(const std::vector<float>& learned, double box_radius, double aspect_x, double aspect_y)

@@ -94,6 +94,7 @@ private:
   std::vector<float> weights_;
   double weight_sum_ = 0.0;
   std::vector<float> learned_, running_, current_;  ///< normalised templates (current_ = anchor mix)
+  std::vector<float> weighted_;  ///< weights_ times current_, for score()
   double box_radius_ = 0.0;  ///< half the box's mean side, px (2D hypotheses)
   double aspect_x_ = 1.0, aspect_y_ = 1.0;  ///< the box's half-width and half-height over box_radius_
   std::vector<float> scratch_;
