@@ -67,10 +67,12 @@ public:
   virtual void evaluatePair(FeatureCache& cache, const ImageHypotheses& left, const ImageHypotheses& right,
                             Eigen::Ref<Eigen::VectorXd> log_likelihood, Eigen::Ref<Eigen::VectorXd> similarity);
 
-  /// Optional: a per-pixel map of how much each pixel looks like the target (CV_8UC1, 0..255, image size)
-  /// for the engine's detection-driven proposals while searching or lost (e.g. a colour back-projection).
-  /// Compute it through `cache` so it is made once per frame. Return false when the model has no such map
-  /// (the default) or no target.
+  /// Optional: a map of how much each place looks like the target (CV_8UC1, 0..255) for the engine's
+  /// detection-driven proposals (searching, lost, and the recovery search while tracking), e.g. a colour
+  /// back-projection. It covers the whole image, at its size or at any lower resolution of about its aspect:
+  /// the engine resizes it to its grid of 4x4-pixel cells, so a map at a lower resolution (the template's is
+  /// matched on a shrunk image) costs less and proposes about the same. Compute it through `cache` so it is
+  /// made once per frame. Return false when the model has no such map (the default) or no target.
   virtual bool targetMap(FeatureCache& /*cache*/, View /*view*/, cv::Mat& /*map*/) { return false; }
 
   /// Optional: follow the object's appearance. The engine calls this after each frame in which the tracked

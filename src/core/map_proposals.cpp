@@ -17,36 +17,41 @@ void MapProposals::draw(FeatureCache& cache, const std::vector<std::shared_ptr<O
   if (count <= 0)
     return;
   // Where every model with a map agrees (their product: the colour of a grey object is everywhere, its
-  // template is not).
-  cv::Mat map_left, map_right, one_left, one_right;
+  // template is not), on 4x4-pixel cells: a CDF over 20k cells instead of 300k pixels, and averaging
+  // suppresses isolated pixels that happen to share the target's colour. Each map is brought to the cells
+  // first (a model may give it at a lower resolution than the image's).
+  constexpr int kCell = 4;
+  const cv::Size cells(std::max(1, g.width() / kCell), std::max(1, g.height() / kCell));
+  auto toCells = [&cells](const cv::Mat& map, cv::Mat& out) {
+    const bool shrink = map.cols >= cells.width && map.rows >= cells.height;
+    cv::resize(map, out, cells, 0, 0, shrink ? cv::INTER_AREA : cv::INTER_LINEAR);
+  };
+  cv::Mat one_left, one_right;
   bool have = false;
   for (size_t k = 0; k < models.size(); ++k)
   {
     ObservationModel& m = *models[k];
     // A cue the learning frame showed to match the background as well as the object (trust 0) has no say.
     if (m.enabled() && trust[k] > 0.0 && m.targetMap(cache, View::Left, one_left) &&
-        m.targetMap(cache, View::Right, one_right))
+        m.targetMap(cache, View::Right, one_right) && !one_left.empty() && !one_right.empty())
     {
       if (!have)
       {
-        map_left = one_left.clone();
-        map_right = one_right.clone();
+        toCells(one_left, small_left_);
+        toCells(one_right, small_right_);
       }
       else
       {
-        cv::multiply(map_left, one_left, map_left, 1.0 / 255.0);
-        cv::multiply(map_right, one_right, map_right, 1.0 / 255.0);
+        toCells(one_left, cell_scratch_);
+        cv::multiply(small_left_, cell_scratch_, small_left_, 1.0 / 255.0);
+        toCells(one_right, cell_scratch_);
+        cv::multiply(small_right_, cell_scratch_, small_right_, 1.0 / 255.0);
       }
       have = true;
     }
   }
   if (!have)
     return;
-  // Work on 4x4-pixel cells: a CDF over 20k cells instead of 300k pixels, and averaging suppresses
-  // isolated pixels that happen to share the target's colour.
-  constexpr int kCell = 4;
-  cv::resize(map_left, small_left_, cv::Size(map_left.cols / kCell, map_left.rows / kCell), 0, 0, cv::INTER_AREA);
-  cv::resize(map_right, small_right_, small_left_.size(), 0, 0, cv::INTER_AREA);
   const int cols = small_left_.cols, rows = small_left_.rows;
   cdf_.resize(static_cast<size_t>(cols) * rows);
   double total = 0.0;

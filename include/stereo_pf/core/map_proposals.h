@@ -44,6 +44,7 @@ public:
 
 private:
   cv::Mat small_left_, small_right_;  ///< the maps' products on 4x4 cells
+  cv::Mat cell_scratch_;               ///< one map on the cells
   std::vector<double> cdf_, row_cdf_;
 };
 
