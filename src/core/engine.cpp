@@ -556,6 +556,8 @@ void FilterEngine::respawn(const StereoGeometry& geometry, int set, int count, d
   for (int i = std::max(0, first_local); i < proposed; ++i)
     p.weights[i] = 1.0 / n;
   p.weights /= p.weights.sum();
+  if (arrival && set < static_cast<int>(jump_rows_.size()))
+    jump_rows_[set] = std::clamp(first_local, 0, proposed);
 }
 
 void FilterEngine::prepareProposals(const StereoGeometry& g, int count, const StateEstimate* near)
@@ -862,18 +864,85 @@ double FilterEngine::observe(const StereoGeometry& geometry, int s, Take take)
   return cues;
 }
 
+double FilterEngine::keepJumpShares(ParticleSet& p, const ImageHypotheses& h, int jumped)
+{
+  // Refining cues refine; they do not choose between places. This frame's recovery jumps and the predicted
+  // particles keep the shares the other (evidence) cues gave them, and the refining cues weigh within each.
+  // Otherwise a cue that any well-triangulated surface satisfies (stereo agreement) hands the track to a
+  // look-alike in one frame whenever the object itself matches less well across the views (near the camera
+  // its two views show different backgrounds). A jump takes the track on the evidence cues only.
+  const int n = p.size();
+  // A jump that landed on the tracked object itself (in the first view, within two apparent radii of where the
+  // predicted particles are) is part of the track: there the refining cues may weigh it against them.
+  double cu = 0.0, cv = 0.0;
+  int m = 0;
+  for (int i = 0; i < n; ++i)
+    if (!jumped_[i] && h.valid[i] && std::isfinite(h.u[i]) && std::isfinite(h.v[i]))
+    {
+      cu += h.u[i];
+      cv += h.v[i];
+      ++m;
+    }
+  if (m > 0)
+  {
+    cu /= m;
+    cv /= m;
+    for (int i = 0; i < n; ++i)
+      if (jumped_[i] && h.valid[i] && std::isfinite(h.u[i]) && std::isfinite(h.v[i]) &&
+          std::hypot(h.u[i] - cu, h.v[i] - cv) <= 2.0 * std::max({ static_cast<double>(h.radius[i]), track_radius_, 1.0 }))
+      {
+        jumped_[i] = 0;
+        --jumped;
+      }
+  }
+  if (jumped <= 0 || jumped >= n)
+    return 0.0;  // one group: the caller's normalisation carries the refining stage's marginal
+  double top[2] = { -std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity() };
+  for (int i = 0; i < n; ++i)
+    if (std::isfinite(p.log_weights[i]))
+      top[jumped_[i]] = std::max(top[jumped_[i]], p.log_weights[i]);
+  double sum[2] = { 0.0, 0.0 };
+  for (int i = 0; i < n; ++i)
+    if (std::isfinite(p.log_weights[i]))
+      sum[jumped_[i]] += std::exp(p.log_weights[i] - top[jumped_[i]]);
+  const double highest = std::max(top[0], top[1]);
+  double mean = 0.0;  // the refining stage's marginal likelihood (the set is resampled: a uniform prior)
+  for (int g = 0; g < 2; ++g)
+    if (sum[g] > 0.0)
+      mean += std::exp(top[g] - highest) * sum[g] / n;
+  if (!(mean > 0.0))
+    return 0.0;
+  // The set was resampled, so each group's share is its count; its weights are made to sum to that.
+  const double share[2] = { static_cast<double>(n - jumped) / n, static_cast<double>(jumped) / n };
+  for (int i = 0; i < n; ++i)
+    if (std::isfinite(p.log_weights[i]))
+    {
+      const int g = jumped_[i];
+      p.log_weights[i] += std::log(share[g]) - top[g] - std::log(sum[g]);
+    }
+  return highest + std::log(mean);
+}
+
 template <class Refining>
 double FilterEngine::refineSecondStage(const StereoGeometry& geometry, int s, Refining refining, bool& escaped)
 {
   ParticleSet& p = sets_[s];
-  const double log_marginal = p.normalise();
+  double log_marginal = p.normalise();
   coarse_sets_[s] = p;  // what the other cues allow: its spread is part of the published uncertainty
   const Eigen::MatrixXd cov = weightedCovariance(p.states, p.weights, weightedMean(p.states, p.weights));
   systematicResample(p, rng_, resample_indices_, resample_scratch_);
+  const int n = p.size();
+  const int jumps = s < static_cast<int>(jump_rows_.size()) ? std::min(jump_rows_[s], n) : 0;
+  jumped_.assign(n, 0);
+  int jumped = 0;
+  for (int i = 0; i < n && jumps > 0; ++i)
+    jumped += jumped_[i] = resample_indices_[i] < jumps ? 1 : 0;
   jitter(p, cov, config_.refine_jitter, rng_);
   p.log_weights.setZero();
   observe(geometry, s, [&](const ObservationModel& m) { return refining(m) ? Use{ 1.0, false } : Use{}; });
   escaped = boundToViewingVolume(s) == 0 || escaped;
+  if (jumped > 0 && jumped < n && !hypotheses_[s].empty())
+    log_marginal += keepJumpShares(p, hypotheses_[s][0], jumped);
   return log_marginal;
 }
 
@@ -903,6 +972,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
   last_stamp_ = frame.stamp;
   result.dt = dt;
 
+  jump_rows_.assign(sets_.size(), 0);
   if (acquired_.pending)
   {
     // The user's box says where the object is: start there, tracking.

@@ -276,8 +276,13 @@ private:
   double observe(const StereoGeometry& geometry, int s, Take take);
   /// Progressive correction, the second stage of a tracking frame: set `s`, weighed by the first-stage cues, is
   /// normalised, resampled and jittered over the region they allow (refine_jitter times their covariance), then
-  /// weighed by the cues `refining(model)` selects alone. Returns the first stage's log marginal likelihood;
-  /// sets `escaped` when the jittered set left the viewing volume.
+  /// weighed by the cues `refining(model)` selects alone, this frame's recovery jumps and the rest each within
+  /// the share the first stage gave them (keepJumpShares()). Returns the log marginal likelihood so far; sets
+  /// `escaped` when the jittered set left the viewing volume.
+  /// Refining-stage weights of set `p` (hypotheses `h` of its first view) kept within the share of the particles
+  /// flagged in jumped_ (`jumped` of them; those on the tracked object join the rest) and of the rest. Returns
+  /// that stage's log marginal likelihood when it split the set (its weights then sum to one), else 0.
+  double keepJumpShares(ParticleSet& p, const ImageHypotheses& h, int jumped);
   template <class Refining>
   double refineSecondStage(const StereoGeometry& geometry, int s, Refining refining, bool& escaped);
 
@@ -307,6 +312,9 @@ private:
   double track_radius_ = 0.0;  ///< the tracked hypotheses' median apparent radius in the left image, px
   LocalSearch local_search_;
   int local_proposals_ = 0;  ///< how many of proposals_ (the last ones) the local search made this frame
+  /// Per set: this frame's recovery jumps are its first jump_rows_[s] particles (0: none). The refining stage
+  /// keeps their share and the rest's apart (see refineSecondStage()).
+  std::vector<int> jump_rows_;
   TrackState state_ = TrackState::Searching;
   int seen_count_ = 0;
   int unseen_count_ = 0;
@@ -338,6 +346,7 @@ private:
   std::vector<float> radius_scratch_;
   std::vector<int> resample_indices_;
   Eigen::MatrixXd resample_scratch_;
+  std::vector<int> jumped_;  ///< refining stage: which resampled particles descend from a recovery jump
 };
 
 }  // namespace stereo_pf
