@@ -600,6 +600,24 @@ TEST(EngineTrackState, UnsureFramesNeitherCountNorBreakARunOfUnseenOnes)
     EXPECT_EQ(interrupted[k], TrackState::Tracking) << "frame " << k;
 }
 
+TEST(EngineTrackState, ATrackThatStaysUnsureIsLostAfterUnsureFrames)
+{
+  // Evidence stuck at 0.55, between the thresholds: no frame is seen or unseen, but after unsure_frames of them in
+  // a row the track is lost (a stress scene's cylinder stayed "tracking" while its estimate drifted 8 m onto the
+  // background). A seen frame before that restarts the count.
+  const EngineConfig defaults;
+  ASSERT_EQ(defaults.unsure_frames, 10);
+  ASSERT_TRUE(0.55 >= defaults.lost_similarity && 0.55 < defaults.found_similarity);
+  const std::vector<TrackState> stuck = statesUnder(std::vector<double>(12, 0.55));
+  EXPECT_EQ(stuck[18], TrackState::Tracking) << "nine unsure frames";
+  EXPECT_EQ(stuck[19], TrackState::Lost) << "the tenth unsure frame in a row";
+  std::vector<double> broken(12, 0.55);
+  broken[5] = 0.9;
+  const std::vector<TrackState> restarted = statesUnder(broken);
+  for (size_t k = 9; k < restarted.size(); ++k)
+    EXPECT_EQ(restarted[k], TrackState::Tracking) << "frame " << k;
+}
+
 TEST(EngineTrackState, ALookAlikeScoringBelowTheObjectIsNotTakenForItOnceLost)
 {
   // Lost (three frames at 0.1), then something scoring 0.8 (well above found_similarity, but more than

@@ -146,6 +146,9 @@ const std::vector<EngineField>& engineFields()
                                "switch to tracking"),
     intField<&C::lost_frames>("lost_frames", 1, 1000, false,
                               "unseen frames, no seen one between, to switch to lost"),
+    intField<&C::unsure_frames>("unsure_frames", 0, 100000, false,
+                                "unsure frames in a row (neither seen nor unseen) after which a track is lost "
+                                "too (0: never)"),
     doubleField<&C::reacquire_margin>("reacquire_margin", 0.0, 1.0, true,
                                       "once tracked, found again (searching or lost) only with evidence within "
                                       "this of the object's when its first track began (1: found_similarity "
@@ -272,7 +275,7 @@ void FilterEngine::applyPending()
     rng_.seed(config_.seed);
     initialised_ = false;
     state_ = TrackState::Searching;
-    seen_count_ = unseen_count_ = state_frames_ = 0;
+    seen_count_ = unseen_count_ = unsure_count_ = state_frames_ = 0;
   }
   // Last, and with the flag cleared first: a plugin that rejects its new parameters throws out of step()
   // once, not on every later frame, and the restart above is not lost.
@@ -687,7 +690,7 @@ void FilterEngine::updateTrackState(Support support, FrameResult& result)
   {
     // No estimate can come from outside what the cameras see: lost at once, searched for afresh.
     state_ = TrackState::Lost;
-    seen_count_ = unseen_count_ = 0;
+    seen_count_ = unseen_count_ = unsure_count_ = 0;
     initialised_ = false;
     result.reinitialised = true;
   }
@@ -703,10 +706,16 @@ void FilterEngine::updateTrackState(Support support, FrameResult& result)
     const bool refound = state_ != TrackState::Tracking && track_reference_ >= 0.0;
     seen_count_ = seen ? seen_count_ + 1 : (unseen || refound) ? 0 : seen_count_;
     unseen_count_ = unseen ? unseen_count_ + 1 : seen ? 0 : unseen_count_;
+    // ... but a track cannot stay unsure for ever: its estimate is then whatever scores as well as the object
+    // does now (on a stress scene, a cylinder whose evidence sat at 0.56-0.6 for 15 frames, then the background
+    // 8 m behind it).
+    unsure_count_ = state_ == TrackState::Tracking && !seen && !unseen ? unsure_count_ + 1 : 0;
+    const bool too_unsure = config_.unsure_frames > 0 && unsure_count_ >= config_.unsure_frames;
     if (state_ != TrackState::Tracking && seen_count_ >= config_.found_frames)
       state_ = TrackState::Tracking;
-    else if (state_ == TrackState::Tracking && unseen_count_ >= config_.lost_frames)
+    else if (state_ == TrackState::Tracking && (unseen_count_ >= config_.lost_frames || too_unsure))
     {
+      unsure_count_ = 0;
       state_ = TrackState::Lost;
       // A set that settled on background which looks like the target stays there: spread it afresh.
       if (support == Support::LikeBackground)
@@ -980,7 +989,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     seedAroundAcquisition(geometry);
     acquired_.pending = false;
     state_ = TrackState::Tracking;
-    seen_count_ = unseen_count_ = state_frames_ = 0;
+    seen_count_ = unseen_count_ = unsure_count_ = state_frames_ = 0;
   }
   else if (!initialised_)
     initialiseParticles(geometry);

@@ -68,6 +68,10 @@ struct EngineConfig
   double lost_similarity = 0.45;      ///< below this counts as "object not seen"
   int found_frames = 2;               ///< seen frames, no unseen one between, to switch to Tracking
   int lost_frames = 3;                ///< unseen frames, no seen one between, to switch to Lost
+  /// Unsure frames in a row (neither seen nor unseen) after which a track is Lost too (0: never): a track
+  /// whose evidence stays between the thresholds cannot vouch for its estimate, which drifts onto the
+  /// background as soon as that scores as well.
+  int unsure_frames = 10;
   /// Once the target has been tracked, finding it again (from Searching or Lost) needs evidence within this of
   /// what the object showed when its first track began (track_reference), besides found_similarity: a
   /// look-alike or a patch of backdrop that scores well above found_similarity, but below the object itself,
@@ -318,6 +322,7 @@ private:
   TrackState state_ = TrackState::Searching;
   int seen_count_ = 0;
   int unseen_count_ = 0;
+  int unsure_count_ = 0;  ///< unsure frames in a row while tracking
   int state_frames_ = 0;
   /// The evidence on the first seen frame of the first track since the target was learned or loaded (-1: none
   /// yet): what the object itself scores, the measure a re-acquisition is held to (reacquire_margin).
