@@ -630,8 +630,8 @@ TEST(Tracking, ARefiningCueDoesNotHandTheTrackToALookAlike)
   EngineConfig config;
   config.recovery_period = 1;
   config.cue_trust = false;  // the test cue counts fully (it scores the object below the background)
-  FilterEngine engine(plugin<Position3D>("state_model"), { plugin<ColourHSI>("colour"), plugin<FavouringTheRightHalf>("favour") },
-                      config);
+  FilterEngine engine(plugin<Position3D>("state_model"),
+                      { plugin<ColourHSI>("colour"), plugin<FavouringTheRightHalf>("favour") }, config);
   cv::Mat l, r;
   std::string error;
   ASSERT_TRUE(engine.learnTarget(renderFrame(renderer, 0, l, r), renderer.targetRoi(0), error)) << error;

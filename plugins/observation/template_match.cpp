@@ -249,8 +249,9 @@ bool TemplateMatch::targetMap(FeatureCache& cache, View view, cv::Mat& map)
     // proposals on 4-px cells needs no finer match, and the correlation's cost goes as the fourth power of
     // this), or less when the image would be wider than 200 px, but never below 5 samples; by a whole
     // factor, which OpenCV's area resize does several times faster than a fractional one.
+    const double samples = std::min(size_, kMapSamples);
     const double scale =
-        std::clamp(std::min(std::min(size_, kMapSamples) / (2.0 * hx), 200.0 / gray.cols), 5.0 / (2.0 * std::min(hx, hy)), 1.0);
+        std::clamp(std::min(samples / (2.0 * hx), 200.0 / gray.cols), 5.0 / (2.0 * std::min(hx, hy)), 1.0);
     const int factor = std::max(1, static_cast<int>(std::floor(1.0 / scale + 1e-9)));
     cv::Mat small, result;
     cv::resize(gray, small, cv::Size(gray.cols / factor, gray.rows / factor), 0, 0, cv::INTER_AREA);

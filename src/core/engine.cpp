@@ -897,12 +897,16 @@ double FilterEngine::keepJumpShares(ParticleSet& p, const ImageHypotheses& h, in
     cu /= m;
     cv /= m;
     for (int i = 0; i < n; ++i)
-      if (jumped_[i] && h.valid[i] && std::isfinite(h.u[i]) && std::isfinite(h.v[i]) &&
-          std::hypot(h.u[i] - cu, h.v[i] - cv) <= 2.0 * std::max({ static_cast<double>(h.radius[i]), track_radius_, 1.0 }))
+    {
+      if (!jumped_[i] || !h.valid[i] || !std::isfinite(h.u[i]) || !std::isfinite(h.v[i]))
+        continue;
+      const double reach = 2.0 * std::max({ static_cast<double>(h.radius[i]), track_radius_, 1.0 });
+      if (std::hypot(h.u[i] - cu, h.v[i] - cv) <= reach)
       {
         jumped_[i] = 0;
         --jumped;
       }
+    }
   }
   if (jumped <= 0 || jumped >= n)
     return 0.0;  // one group: the caller's normalisation carries the refining stage's marginal

@@ -278,15 +278,15 @@ private:
   /// model's trust; comparesViews models: none).
   template <class Take>
   double observe(const StereoGeometry& geometry, int s, Take take);
+  /// Refining-stage weights of set `p` (hypotheses `h` of its first view) kept within the share of the particles
+  /// flagged in jumped_ (`jumped` of them; those on the tracked object join the rest) and of the rest. Returns
+  /// that stage's log marginal likelihood when it split the set (its weights then sum to one), else 0.
+  double keepJumpShares(ParticleSet& p, const ImageHypotheses& h, int jumped);
   /// Progressive correction, the second stage of a tracking frame: set `s`, weighed by the first-stage cues, is
   /// normalised, resampled and jittered over the region they allow (refine_jitter times their covariance), then
   /// weighed by the cues `refining(model)` selects alone, this frame's recovery jumps and the rest each within
   /// the share the first stage gave them (keepJumpShares()). Returns the log marginal likelihood so far; sets
   /// `escaped` when the jittered set left the viewing volume.
-  /// Refining-stage weights of set `p` (hypotheses `h` of its first view) kept within the share of the particles
-  /// flagged in jumped_ (`jumped` of them; those on the tracked object join the rest) and of the rest. Returns
-  /// that stage's log marginal likelihood when it split the set (its weights then sum to one), else 0.
-  double keepJumpShares(ParticleSet& p, const ImageHypotheses& h, int jumped);
   template <class Refining>
   double refineSecondStage(const StereoGeometry& geometry, int s, Refining refining, bool& escaped);
 
