@@ -873,6 +873,41 @@ double FilterEngine::observe(const StereoGeometry& geometry, int s, Take take)
   return cues;
 }
 
+int FilterEngine::awayFromTrack(const ImageHypotheses& h, std::vector<int>& flags) const
+{
+  // A jump that landed on the tracked object itself (in the first view, within two apparent radii of where the
+  // other particles are) is part of the track, not a move to another place.
+  const int n = h.size();
+  double cu = 0.0, cv = 0.0;
+  int m = 0, flagged = 0;
+  for (int i = 0; i < n; ++i)
+  {
+    flagged += flags[i] ? 1 : 0;
+    if (!flags[i] && h.valid[i] && std::isfinite(h.u[i]) && std::isfinite(h.v[i]))
+    {
+      cu += h.u[i];
+      cv += h.v[i];
+      ++m;
+    }
+  }
+  if (m == 0)
+    return flagged;
+  cu /= m;
+  cv /= m;
+  for (int i = 0; i < n; ++i)
+  {
+    if (!flags[i] || !h.valid[i] || !std::isfinite(h.u[i]) || !std::isfinite(h.v[i]))
+      continue;
+    const double reach = 2.0 * std::max({ static_cast<double>(h.radius[i]), track_radius_, 1.0 });
+    if (std::hypot(h.u[i] - cu, h.v[i] - cv) <= reach)
+    {
+      flags[i] = 0;
+      --flagged;
+    }
+  }
+  return flagged;
+}
+
 double FilterEngine::keepJumpShares(ParticleSet& p, const ImageHypotheses& h, int jumped)
 {
   // Refining cues refine; they do not choose between places. This frame's recovery jumps and the predicted
@@ -881,33 +916,7 @@ double FilterEngine::keepJumpShares(ParticleSet& p, const ImageHypotheses& h, in
   // look-alike in one frame whenever the object itself matches less well across the views (near the camera
   // its two views show different backgrounds). A jump takes the track on the evidence cues only.
   const int n = p.size();
-  // A jump that landed on the tracked object itself (in the first view, within two apparent radii of where the
-  // predicted particles are) is part of the track: there the refining cues may weigh it against them.
-  double cu = 0.0, cv = 0.0;
-  int m = 0;
-  for (int i = 0; i < n; ++i)
-    if (!jumped_[i] && h.valid[i] && std::isfinite(h.u[i]) && std::isfinite(h.v[i]))
-    {
-      cu += h.u[i];
-      cv += h.v[i];
-      ++m;
-    }
-  if (m > 0)
-  {
-    cu /= m;
-    cv /= m;
-    for (int i = 0; i < n; ++i)
-    {
-      if (!jumped_[i] || !h.valid[i] || !std::isfinite(h.u[i]) || !std::isfinite(h.v[i]))
-        continue;
-      const double reach = 2.0 * std::max({ static_cast<double>(h.radius[i]), track_radius_, 1.0 });
-      if (std::hypot(h.u[i] - cu, h.v[i] - cv) <= reach)
-      {
-        jumped_[i] = 0;
-        --jumped;
-      }
-    }
-  }
+  jumped = awayFromTrack(h, jumped_);
   if (jumped <= 0 || jumped >= n)
     return 0.0;  // one group: the caller's normalisation carries the refining stage's marginal
   double top[2] = { -std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity() };
@@ -1063,6 +1072,20 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
       return refining(m) ? Use{ config_.refine_search_weight, false } : Use{ 1.0, true };
     });
     escaped = boundToViewingVolume(s) == 0 || escaped;
+    // A recovery jump to another place than the track's counts, like a re-acquisition, only where the evidence
+    // cues see what the object itself scores (reacquire_margin). A look-alike scoring well below it
+    // would otherwise take the track whenever the object's own evidence sinks (near the camera, against other
+    // backgrounds), from where nothing brings it back.
+    const int jumps = s < static_cast<int>(jump_rows_.size()) ? std::min(jump_rows_[s], n) : 0;
+    if (jumps > 0 && cues > 0.0 && track_reference_ >= 0.0 && !hypotheses_[s].empty())
+    {
+      jumped_.assign(n, 0);
+      std::fill(jumped_.begin(), jumped_.begin() + jumps, 1);
+      awayFromTrack(hypotheses_[s][0], jumped_);
+      for (int i = 0; i < jumps; ++i)
+        if (jumped_[i] && sum_sim_[i] / cues < track_reference_ - config_.reacquire_margin)
+          p.log_weights[i] = -std::numeric_limits<double>::infinity();
+    }
     if (two_stage)
       p.temper(prior_log_, config_.min_ess * n);
     // Evidence that the object is seen: the best particle's mean similarity over cues and views; for

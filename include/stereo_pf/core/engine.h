@@ -278,6 +278,9 @@ private:
   /// model's trust; comparesViews models: none).
   template <class Take>
   double observe(const StereoGeometry& geometry, int s, Take take);
+  /// Unflags the particles flagged in `flags` whose image in `h` (a set's first view) lies within two apparent
+  /// radii of the unflagged particles' mean image: they landed on the track. Returns how many stay flagged.
+  int awayFromTrack(const ImageHypotheses& h, std::vector<int>& flags) const;
   /// Refining-stage weights of set `p` (hypotheses `h` of its first view) kept within the share of the particles
   /// flagged in jumped_ (`jumped` of them; those on the tracked object join the rest) and of the rest. Returns
   /// that stage's log marginal likelihood when it split the set (its weights then sum to one), else 0.
@@ -351,7 +354,7 @@ private:
   std::vector<float> radius_scratch_;
   std::vector<int> resample_indices_;
   Eigen::MatrixXd resample_scratch_;
-  std::vector<int> jumped_;  ///< refining stage: which resampled particles descend from a recovery jump
+  std::vector<int> jumped_;  ///< which particles are (first stage) or descend from (refining stage) recovery jumps
 };
 
 }  // namespace stereo_pf
