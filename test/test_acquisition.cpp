@@ -589,13 +589,45 @@ TEST(TemplateMatch, PeaksAtTheObjectInBothViewsAndSurvivesSaveAndLoad)
 
 namespace
 {
-/// A refining cue that, like stereo agreement on a surface seen against different backgrounds in the two views,
-/// scores one place much better than the object: every hypothesis right of the image centre.
-class FavouringTheRightHalf : public stereo_pf::ObservationModel
+/// A cue whose scores a test scripts (evaluate()): it learns nothing and saves nothing.
+class TestCue : public stereo_pf::ObservationModel
 {
 public:
   bool learnTarget(stereo_pf::FeatureCache&, stereo_pf::View, const cv::Rect&, std::string&) override { return true; }
   bool hasTarget() const override { return true; }
+  void saveTarget(cv::FileStorage&) const override {}
+  bool loadTarget(const cv::FileNode&, std::string&) override { return true; }
+
+protected:
+  void onInitialize() override {}
+};
+
+/// Two identical balls 24 cm apart, the object left of the image centre and its look-alike right of it, and an
+/// engine configuration with the recovery search on every frame and the scripted cues counting fully (without
+/// cue_trust: they score the object below the background).
+struct TwoBalls
+{
+  static stereo_pf::SceneDescription describe(int frames)
+  {
+    stereo_pf::SceneDescription d = scene({ ball(0.03, target), ball(0.03, look_alike) }, 2.4, true);
+    d.frames = frames;
+    return d;
+  }
+  explicit TwoBalls(int frames) : renderer(describe(frames))
+  {
+    config.recovery_period = 1;
+    config.cue_trust = false;
+  }
+  static inline const Eigen::Vector3d target{ -0.12, 0.0, 1.2 }, look_alike{ 0.12, 0.0, 1.2 };
+  SceneRenderer renderer;
+  stereo_pf::EngineConfig config;
+};
+
+/// A refining cue that, like stereo agreement on a surface seen against different backgrounds in the two views,
+/// scores one place much better than the object: every hypothesis right of the image centre.
+class FavouringTheRightHalf : public TestCue
+{
+public:
   void evaluate(stereo_pf::FeatureCache& cache, const stereo_pf::ImageHypotheses& hyp,
                 Eigen::Ref<Eigen::VectorXd> log_likelihood, Eigen::Ref<Eigen::VectorXd> similarity) override
   {
@@ -606,11 +638,8 @@ public:
       log_likelihood[i] = (similarity[i] - 1.0) / 0.02;  // e^-35 for the object: as sharp as the stereo cue
     }
   }
-  void saveTarget(cv::FileStorage&) const override {}
-  bool loadTarget(const cv::FileNode&, std::string&) override { return true; }
 
 protected:
-  void onInitialize() override {}
   bool refinesByDefault() const override { return true; }
 };
 }  // namespace
@@ -623,21 +652,18 @@ TEST(Tracking, ARefiningCueDoesNotHandTheTrackToALookAlike)
   // weigh the recovery's jumps and the predicted particles each within the share the evidence cues gave them.
   // (Before, the jumps took the whole weight on the first frame of the search.)
   using namespace stereo_pf;
-  const Eigen::Vector3d target(-0.12, 0.0, 1.2), look_alike(0.12, 0.0, 1.2);
-  SceneDescription d = scene({ ball(0.03, target), ball(0.03, look_alike) }, 2.4, true);
-  d.frames = 30;
-  SceneRenderer renderer(d);
-  EngineConfig config;
-  config.recovery_period = 1;
-  config.cue_trust = false;  // the test cue counts fully (it scores the object below the background)
+  TwoBalls scene(30);
+  const Eigen::Vector3d& target = scene.target;
+  const Eigen::Vector3d& look_alike = scene.look_alike;
+  SceneRenderer& renderer = scene.renderer;
   FilterEngine engine(plugin<Position3D>("state_model"),
-                      { plugin<ColourHSI>("colour"), plugin<FavouringTheRightHalf>("favour") }, config);
+                      { plugin<ColourHSI>("colour"), plugin<FavouringTheRightHalf>("favour") }, scene.config);
   cv::Mat l, r;
   std::string error;
   ASSERT_TRUE(engine.learnTarget(renderFrame(renderer, 0, l, r), renderer.targetRoi(0), error)) << error;
   // Colour alone pins the object to a few centimetres; the look-alike is 24 cm away.
   double worst = 0.0;
-  for (int k = 0; k < d.frames; ++k)
+  for (int k = 0; k < 30; ++k)
   {
     const FrameResult res = engine.step(renderFrame(renderer, k, l, r));
     ASSERT_EQ(res.state, TrackState::Tracking) << "frame " << k;
@@ -653,15 +679,13 @@ namespace
 /// An evidence cue under a script: near the object's image (within half its apparent radius) it scores 0.95,
 /// near a look-alike's 0.7, elsewhere 0.2; on `sunk` frames the object scores 0.5 (its appearance lost against a
 /// new background). Its target map shows both.
-class SinkingObject : public stereo_pf::ObservationModel
+class SinkingObject : public TestCue
 {
 public:
   int frame = 0;
   int sunk_from = 0, sunk_to = 0;  ///< frames [sunk_from, sunk_to)
   Eigen::Vector3d object, look_alike;
   double radius = 0.0;  ///< m
-  bool learnTarget(stereo_pf::FeatureCache&, stereo_pf::View, const cv::Rect&, std::string&) override { return true; }
-  bool hasTarget() const override { return true; }
   void evaluate(stereo_pf::FeatureCache& cache, const stereo_pf::ImageHypotheses& hyp,
                 Eigen::Ref<Eigen::VectorXd> log_likelihood, Eigen::Ref<Eigen::VectorXd> similarity) override
   {
@@ -691,11 +715,6 @@ public:
     }
     return true;
   }
-  void saveTarget(cv::FileStorage&) const override {}
-  bool loadTarget(const cv::FileNode&, std::string&) override { return true; }
-
-protected:
-  void onInitialize() override {}
 };
 }  // namespace
 
@@ -707,13 +726,11 @@ TEST(Tracking, ARecoveryJumpToALookAlikeScoringBelowTheObjectIsRefused)
   // reacquire_margin of what the object scores: the track stays on the object. (Before, it went to the
   // look-alike.)
   using namespace stereo_pf;
-  const Eigen::Vector3d target(-0.12, 0.0, 1.2), look_alike(0.12, 0.0, 1.2);
-  SceneDescription d = scene({ ball(0.03, target), ball(0.03, look_alike) }, 2.4, true);
-  d.frames = 25;
-  SceneRenderer renderer(d);
-  EngineConfig config;
-  config.recovery_period = 1;
-  config.cue_trust = false;
+  TwoBalls scene(25);
+  const Eigen::Vector3d& target = scene.target;
+  const Eigen::Vector3d& look_alike = scene.look_alike;
+  SceneRenderer& renderer = scene.renderer;
+  const EngineConfig& config = scene.config;
   ASSERT_TRUE(0.7 >= config.found_similarity && 0.7 < 0.95 - config.reacquire_margin);
   auto cue = plugin<SinkingObject>("scripted");
   cue->sunk_from = 10;
@@ -725,7 +742,7 @@ TEST(Tracking, ARecoveryJumpToALookAlikeScoringBelowTheObjectIsRefused)
   cv::Mat l, r;
   std::string error;
   ASSERT_TRUE(engine.learnTarget(renderFrame(renderer, 0, l, r), renderer.targetRoi(0), error)) << error;
-  for (int k = 0; k < d.frames; ++k)
+  for (int k = 0; k < 25; ++k)
   {
     cue->frame = k;
     const FrameResult res = engine.step(renderFrame(renderer, k, l, r));

@@ -908,7 +908,7 @@ int FilterEngine::awayFromTrack(const ImageHypotheses& h, std::vector<int>& flag
   return flagged;
 }
 
-double FilterEngine::keepJumpShares(ParticleSet& p, const ImageHypotheses& h, int jumped)
+double FilterEngine::keepJumpShares(ParticleSet& p, const ImageHypotheses& h)
 {
   // Refining cues refine; they do not choose between places. This frame's recovery jumps and the predicted
   // particles keep the shares the other (evidence) cues gave them, and the refining cues weigh within each.
@@ -916,7 +916,7 @@ double FilterEngine::keepJumpShares(ParticleSet& p, const ImageHypotheses& h, in
   // look-alike in one frame whenever the object itself matches less well across the views (near the camera
   // its two views show different backgrounds). A jump takes the track on the evidence cues only.
   const int n = p.size();
-  jumped = awayFromTrack(h, jumped_);
+  const int jumped = awayFromTrack(h, jumped_);
   if (jumped <= 0 || jumped >= n)
     return 0.0;  // one group: the caller's normalisation carries the refining stage's marginal
   double top[2] = { -std::numeric_limits<double>::infinity(), -std::numeric_limits<double>::infinity() };
@@ -964,7 +964,7 @@ double FilterEngine::refineSecondStage(const StereoGeometry& geometry, int s, Re
   observe(geometry, s, [&](const ObservationModel& m) { return refining(m) ? Use{ 1.0, false } : Use{}; });
   escaped = boundToViewingVolume(s) == 0 || escaped;
   if (jumped > 0 && jumped < n && !hypotheses_[s].empty())
-    log_marginal += keepJumpShares(p, hypotheses_[s][0], jumped);
+    log_marginal += keepJumpShares(p, hypotheses_[s][0]);
   return log_marginal;
 }
 
@@ -1073,9 +1073,9 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     });
     escaped = boundToViewingVolume(s) == 0 || escaped;
     // A recovery jump to another place than the track's counts, like a re-acquisition, only where the evidence
-    // cues see what the object itself scores (reacquire_margin). A look-alike scoring well below it
-    // would otherwise take the track whenever the object's own evidence sinks (near the camera, against other
-    // backgrounds), from where nothing brings it back.
+    // cues see what the object itself scores (reacquire_margin). A look-alike scoring well below it would
+    // otherwise take the track whenever the object's own evidence sinks (near the camera, against other
+    // backgrounds), and nothing would bring it back.
     const int jumps = s < static_cast<int>(jump_rows_.size()) ? std::min(jump_rows_[s], n) : 0;
     if (jumps > 0 && cues > 0.0 && track_reference_ >= 0.0 && !hypotheses_[s].empty())
     {

@@ -282,9 +282,9 @@ private:
   /// radii of the unflagged particles' mean image: they landed on the track. Returns how many stay flagged.
   int awayFromTrack(const ImageHypotheses& h, std::vector<int>& flags) const;
   /// Refining-stage weights of set `p` (hypotheses `h` of its first view) kept within the share of the particles
-  /// flagged in jumped_ (`jumped` of them; those on the tracked object join the rest) and of the rest. Returns
-  /// that stage's log marginal likelihood when it split the set (its weights then sum to one), else 0.
-  double keepJumpShares(ParticleSet& p, const ImageHypotheses& h, int jumped);
+  /// flagged in jumped_ (those on the track join the rest: awayFromTrack()) and of the rest. Returns that stage's
+  /// log marginal likelihood when it split the set (its weights then sum to one), else 0.
+  double keepJumpShares(ParticleSet& p, const ImageHypotheses& h);
   /// Progressive correction, the second stage of a tracking frame: set `s`, weighed by the first-stage cues, is
   /// normalised, resampled and jittered over the region they allow (refine_jitter times their covariance), then
   /// weighed by the cues `refining(model)` selects alone, this frame's recovery jumps and the rest each within
