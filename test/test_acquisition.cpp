@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 #include <iostream>
 
 #include <Eigen/Cholesky>
@@ -613,12 +614,30 @@ struct TwoBalls
     d.frames = frames;
     return d;
   }
-  explicit TwoBalls(int frames) : renderer(describe(frames))
+  explicit TwoBalls(int frames) : frames(frames), renderer(describe(frames))
   {
     config.recovery_period = 1;
     config.cue_trust = false;
   }
+  /// Learns the object from its box in frame 0 and tracks every frame (`before(k)` runs before frame k), which must
+  /// stay Tracking; `distances` gets, per frame, the estimate's distance to the object and to the look-alike.
+  void track(stereo_pf::FilterEngine& engine, std::vector<std::pair<double, double>>& distances,
+             const std::function<void(int)>& before = {})
+  {
+    cv::Mat l, r;
+    std::string error;
+    ASSERT_TRUE(engine.learnTarget(renderFrame(renderer, 0, l, r), renderer.targetRoi(0), error)) << error;
+    for (int k = 0; k < frames; ++k)
+    {
+      if (before)
+        before(k);
+      const stereo_pf::FrameResult res = engine.step(renderFrame(renderer, k, l, r));
+      ASSERT_EQ(res.state, stereo_pf::TrackState::Tracking) << "frame " << k;
+      distances.emplace_back((res.estimate.position - target).norm(), (res.estimate.position - look_alike).norm());
+    }
+  }
   static inline const Eigen::Vector3d target{ -0.12, 0.0, 1.2 }, look_alike{ 0.12, 0.0, 1.2 };
+  int frames;
   SceneRenderer renderer;
   stereo_pf::EngineConfig config;
 };
@@ -652,23 +671,18 @@ TEST(Tracking, ARefiningCueDoesNotHandTheTrackToALookAlike)
   // weigh the recovery's jumps and the predicted particles each within the share the evidence cues gave them.
   // (Before, the jumps took the whole weight on the first frame of the search.)
   using namespace stereo_pf;
-  TwoBalls scene(30);
-  const Eigen::Vector3d& target = scene.target;
-  const Eigen::Vector3d& look_alike = scene.look_alike;
-  SceneRenderer& renderer = scene.renderer;
+  TwoBalls balls(30);
   FilterEngine engine(plugin<Position3D>("state_model"),
-                      { plugin<ColourHSI>("colour"), plugin<FavouringTheRightHalf>("favour") }, scene.config);
-  cv::Mat l, r;
-  std::string error;
-  ASSERT_TRUE(engine.learnTarget(renderFrame(renderer, 0, l, r), renderer.targetRoi(0), error)) << error;
+                      { plugin<ColourHSI>("colour"), plugin<FavouringTheRightHalf>("favour") }, balls.config);
+  std::vector<std::pair<double, double>> distances;
+  balls.track(engine, distances);
+  ASSERT_EQ(static_cast<int>(distances.size()), balls.frames);
   // Colour alone pins the object to a few centimetres; the look-alike is 24 cm away.
   double worst = 0.0;
-  for (int k = 0; k < 30; ++k)
+  for (int k = 0; k < balls.frames; ++k)
   {
-    const FrameResult res = engine.step(renderFrame(renderer, k, l, r));
-    ASSERT_EQ(res.state, TrackState::Tracking) << "frame " << k;
-    worst = std::max(worst, (res.estimate.position - target).norm());
-    EXPECT_LT((res.estimate.position - target).norm(), 0.5 * (res.estimate.position - look_alike).norm())
+    worst = std::max(worst, distances[k].first);
+    EXPECT_LT(distances[k].first, 0.5 * distances[k].second)
         << "frame " << k << ": the estimate left the object for the look-alike";
   }
   std::printf("[ figures  ] largest distance from the object %.1f cm (the look-alike is 24 cm away)\n", 100.0 * worst);
@@ -726,28 +740,18 @@ TEST(Tracking, ARecoveryJumpToALookAlikeScoringBelowTheObjectIsRefused)
   // reacquire_margin of what the object scores: the track stays on the object. (Before, it went to the
   // look-alike.)
   using namespace stereo_pf;
-  TwoBalls scene(25);
-  const Eigen::Vector3d& target = scene.target;
-  const Eigen::Vector3d& look_alike = scene.look_alike;
-  SceneRenderer& renderer = scene.renderer;
-  const EngineConfig& config = scene.config;
-  ASSERT_TRUE(0.7 >= config.found_similarity && 0.7 < 0.95 - config.reacquire_margin);
+  TwoBalls balls(25);
+  ASSERT_TRUE(0.7 >= balls.config.found_similarity && 0.7 < 0.95 - balls.config.reacquire_margin);
   auto cue = plugin<SinkingObject>("scripted");
   cue->sunk_from = 10;
   cue->sunk_to = 15;
-  cue->object = target;
-  cue->look_alike = look_alike;
+  cue->object = balls.target;
+  cue->look_alike = balls.look_alike;
   cue->radius = 0.03;
-  FilterEngine engine(plugin<Position3D>("state_model"), { cue }, config);
-  cv::Mat l, r;
-  std::string error;
-  ASSERT_TRUE(engine.learnTarget(renderFrame(renderer, 0, l, r), renderer.targetRoi(0), error)) << error;
-  for (int k = 0; k < 25; ++k)
-  {
-    cue->frame = k;
-    const FrameResult res = engine.step(renderFrame(renderer, k, l, r));
-    ASSERT_EQ(res.state, TrackState::Tracking) << "frame " << k;
-    EXPECT_LT((res.estimate.position - target).norm(), (res.estimate.position - look_alike).norm())
-        << "frame " << k << ": the estimate went to the look-alike";
-  }
+  FilterEngine engine(plugin<Position3D>("state_model"), { cue }, balls.config);
+  std::vector<std::pair<double, double>> distances;
+  balls.track(engine, distances, [&cue](int k) { cue->frame = k; });
+  ASSERT_EQ(static_cast<int>(distances.size()), balls.frames);
+  for (int k = 0; k < balls.frames; ++k)
+    EXPECT_LT(distances[k].first, distances[k].second) << "frame " << k << ": the estimate went to the look-alike";
 }

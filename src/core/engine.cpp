@@ -956,14 +956,13 @@ double FilterEngine::refineSecondStage(const StereoGeometry& geometry, int s, Re
   const int n = p.size();
   const int jumps = s < static_cast<int>(jump_rows_.size()) ? std::min(jump_rows_[s], n) : 0;
   jumped_.assign(n, 0);
-  int jumped = 0;
   for (int i = 0; i < n && jumps > 0; ++i)
-    jumped += jumped_[i] = resample_indices_[i] < jumps ? 1 : 0;
+    jumped_[i] = resample_indices_[i] < jumps ? 1 : 0;
   jitter(p, cov, config_.refine_jitter, rng_);
   p.log_weights.setZero();
   observe(geometry, s, [&](const ObservationModel& m) { return refining(m) ? Use{ 1.0, false } : Use{}; });
   escaped = boundToViewingVolume(s) == 0 || escaped;
-  if (jumped > 0 && jumped < n && !hypotheses_[s].empty())
+  if (jumps > 0 && !hypotheses_[s].empty())
     log_marginal += keepJumpShares(p, hypotheses_[s][0]);
   return log_marginal;
 }
