@@ -659,10 +659,12 @@ namespace
 /// scenes/turning_box.yaml (a 10 cm box, one turn in 8 s about the vertical, each side face another colour)
 /// tracked by the default state model and cues (Velocity3D; colour histogram, template, outline, stereo match), the
 /// histogram adapting at
-/// `colour_adapt_rate`. `kept`: the last frame of the first track with the estimate within the box's edge (10 cm)
-/// of its centre (the cues see its faces, up to half an edge in front of the centre); `refound`: the first frame
-/// after frame 150 tracked that near (-1: none).
-void trackTurningBox(double colour_adapt_rate, int& kept, int& refound)
+/// `colour_adapt_rate`. A frame is on the box when it is tracked with the estimate within the box's edge (10 cm)
+/// of its centre (the cues see its faces, up to half an edge in front of the centre). `kept`: the last frame on
+/// the box before the first two frames in a row that are not; `slips`: the single frames off it up to there (the
+/// estimate's depth can swing by a few pixels of disparity for a frame while the track holds); `refound`: the
+/// first frame after frame 150 on the box (-1: none).
+void trackTurningBox(double colour_adapt_rate, int& kept, int& refound, int& slips)
 {
   Scene scene("turning_box.yaml");
   Parameters colour_params;
@@ -679,15 +681,23 @@ void trackTurningBox(double colour_adapt_rate, int& kept, int& refound)
   ASSERT_TRUE(engine.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
   kept = -1;
   refound = -1;
-  bool first = true;
+  slips = 0;
+  bool first = true, previous_on = true;
   for (int k = 0; k < 240; ++k)
   {
     const FrameResult r = engine.step(scene.frame(k));
     const bool on = r.state == TrackState::Tracking && r.estimate.valid &&
                     (r.estimate.position - scene.renderer().targetPosition(k)).norm() < 0.1;
+    if (first && !on && !previous_on)
+    {
+      first = false;
+      --slips;  // the previous frame began the end of the track
+    }
     if (first && on)
       kept = k;
-    first = first && on;
+    if (first && !on)
+      ++slips;
+    previous_on = on;
     if (k > 150 && on && refound < 0)
       refound = k;
   }
@@ -701,12 +711,13 @@ TEST(EngineAdaptation, ATurningBoxIsKeptPastItsNextFaceAndFoundAgainByItsFirst)
   // 210. Without adaptation the histogram of the front face loses the box as the side face turns in; adapting,
   // it is kept past that face, and lost, it is searched for by the front face again (forgetAdaptation) and found
   // within 15 frames of frame 210.
-  int kept = 0, refound = 0, kept_fixed = 0, refound_fixed = 0;
-  trackTurningBox(0.1, kept, refound);
-  trackTurningBox(0.0, kept_fixed, refound_fixed);
-  std::printf("turning box: adapting, kept to frame %d, found again at %d; fixed histogram, kept to %d, found again at "
-              "%d\n", kept, refound, kept_fixed, refound_fixed);
+  int kept = 0, refound = 0, slips = 0, kept_fixed = 0, refound_fixed = 0, slips_fixed = 0;
+  trackTurningBox(0.1, kept, refound, slips);
+  trackTurningBox(0.0, kept_fixed, refound_fixed, slips_fixed);
+  std::printf("turning box: adapting, kept to frame %d (%d single frames off), found again at %d; fixed histogram, "
+              "kept to %d, found again at %d\n", kept, slips, refound, kept_fixed, refound_fixed);
   EXPECT_GE(kept, 90) << "the side face's colour was not followed";
+  EXPECT_LE(slips, 3) << "kept, but not on the box in " << slips << " of its frames";
   EXPECT_LT(kept_fixed, kept);
   EXPECT_GE(refound, 200);
   EXPECT_LE(refound, 225) << "not found again by its first face";

@@ -130,15 +130,52 @@ TEST(Position3D, ProjectsSphereCentreAndApparentRadius)
   auto m = make<Position3D>();
   ParticleSet s;
   s.resize(3, 3);
-  s.states << 0.1, 0.0, 1.0, 0.0, 0.0, -1.0, 5.0, 0.0, 1.0;
+  s.states << 0.09, 0.0, 1.0, 0.0, 0.0, -1.0, 5.0, 0.0, 1.0;  // the first on the right camera's axis
   ImageHypotheses h;
   h.view = View::Right;
   m->project(kRig, 0, s, h);
-  EXPECT_NEAR(h.u[0], kRig.projectRight({ 0.1, 0, 1 }).u, 1e-3);
+  EXPECT_NEAR(h.u[0], kRig.projectRight({ 0.09, 0, 1 }).u, 1e-3);
   EXPECT_NEAR(h.radius[0], 525 * 0.035, 1e-3);
   EXPECT_EQ(h.valid[0], 1);
   EXPECT_EQ(h.valid[1], 0);  // behind the camera
   EXPECT_EQ(h.valid[2], 0);  // outside the image
+}
+
+// Off the axis a near sphere's image is centred beyond the projection of its centre, by different amounts in
+// the two views; the hypotheses are the middles of the images the cues see (as box acquisition assumes).
+TEST(Position3D, HypothesesAreTheMiddlesOfTheSpheresImages)
+{
+  Parameters p;
+  p.set("object_radius", 0.06);
+  auto m = make<Position3D>(p);
+  const Eigen::Vector3d c(0.3, -0.2, 0.7);
+  ParticleSet s;
+  s.resize(1, 3);
+  s.states.row(0) = c.transpose();
+  for (View view : { View::Left, View::Right })
+  {
+    // The image's extent by brute force: project points all over the sphere.
+    double u0 = HUGE_VAL, u1 = -HUGE_VAL, v0 = HUGE_VAL, v1 = -HUGE_VAL;
+    for (int i = 0; i <= 2000; ++i)
+      for (int j = 0; j < 2000; ++j)
+      {
+        const double theta = M_PI * i / 2000, phi = 2 * M_PI * j / 2000;
+        const Eigen::Vector3d q =
+            c + 0.06 * Eigen::Vector3d(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta));
+        const Pixel px = view == View::Left ? kRig.projectLeft(q) : kRig.projectRight(q);
+        u0 = std::min(u0, px.u);
+        u1 = std::max(u1, px.u);
+        v0 = std::min(v0, px.v);
+        v1 = std::max(v1, px.v);
+      }
+    ImageHypotheses h;
+    h.view = view;
+    m->project(kRig, 0, s, h);
+    const Pixel centre = view == View::Left ? kRig.projectLeft(c) : kRig.projectRight(c);
+    EXPECT_NEAR(h.u[0], 0.5 * (u0 + u1), 0.02);
+    EXPECT_NEAR(h.v[0], 0.5 * (v0 + v1), 0.02);
+    EXPECT_GT(std::abs(h.u[0] - centre.u), 1.0);  // what the centre's projection would have missed
+  }
 }
 
 TEST(Position3D, SeedFromStereoTriangulatesWithinDepthRange)
