@@ -658,8 +658,7 @@ namespace
 {
 /// scenes/turning_box.yaml (a 10 cm box, one turn in 8 s about the vertical, each side face another colour)
 /// tracked by the default state model and cues (Velocity3D; colour histogram, template, outline, stereo match), the
-/// histogram adapting at
-/// `colour_adapt_rate`. A frame is on the box when it is tracked with the estimate within the box's edge (10 cm)
+/// histogram adapting at `colour_adapt_rate`. A frame is on the box when it is tracked with the estimate within the box's edge (10 cm)
 /// of its centre (the cues see its faces, up to half an edge in front of the centre). `kept`: the last frame on
 /// the box before the first two frames in a row that are not; `slips`: the single frames off it up to there (the
 /// estimate's depth can swing by a few pixels of disparity for a frame while the track holds); `refound`: the

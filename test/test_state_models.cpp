@@ -160,8 +160,8 @@ TEST(Position3D, HypothesesAreTheMiddlesOfTheSpheresImages)
       for (int j = 0; j < 2000; ++j)
       {
         const double theta = M_PI * i / 2000, phi = 2 * M_PI * j / 2000;
-        const Eigen::Vector3d q =
-            c + 0.06 * Eigen::Vector3d(std::sin(theta) * std::cos(phi), std::sin(theta) * std::sin(phi), std::cos(theta));
+        const Eigen::Vector3d q = c + 0.06 * Eigen::Vector3d(std::sin(theta) * std::cos(phi),
+                                                             std::sin(theta) * std::sin(phi), std::cos(theta));
         const Pixel px = view == View::Left ? kRig.projectLeft(q) : kRig.projectRight(q);
         u0 = std::min(u0, px.u);
         u1 = std::max(u1, px.u);

@@ -16,8 +16,9 @@ namespace stereo_pf
 struct ImageHypotheses
 {
   View view = View::Left;        ///< image the hypotheses live in
-  std::vector<float> u;          ///< column of the object centre (pixels)
-  std::vector<float> v;          ///< row of the object centre (pixels)
+  std::vector<float> u;          ///< column of the middle of the object's image (pixels; for a sphere off the axis
+                                 ///< a little beyond its centre's projection)
+  std::vector<float> v;          ///< row of the middle of the object's image (pixels)
   std::vector<float> radius;     ///< apparent object radius (pixels)
   std::vector<unsigned char> valid;  ///< 0 when the particle cannot be observed (behind camera, outside image)
 
