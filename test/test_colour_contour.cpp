@@ -203,8 +203,9 @@ TEST(ColourContour, WhiteBallOnGreyWorksWithoutHue)
               0.0, 0.4);
 }
 
-// A real sphere off the optical axis (the shipped pendulum at its extreme, ~20 deg off): with the perspective
-// ellipse the depth whose outlines fit both images best is the true one; a circle would pull it closer.
+// A real sphere off the optical axis (the shipped pendulum at its extreme, ~20 deg off), its hypotheses at the
+// middles of its images as the 3D state models give them: with the perspective ellipse the depth whose outlines
+// fit both images best is the true one; a circle would pull it closer.
 TEST(ColourContour, PerspectiveOutlineGivesTheTrueDepth)
 {
   SceneRenderer renderer(loadScene(std::string(SCENES_DIR) + "/pendulum_uncluttered.yaml"));
@@ -227,7 +228,8 @@ TEST(ColourContour, PerspectiveOutlineGivesTheTrueDepth)
         [&](double dz) {
           const Eigen::Vector3d p = truth * ((truth.z() + dz) / truth.z());  // along the left ray
           const float r = static_cast<float>(f.geometry.apparentRadius(0.035, p.z()));
-          const Pixel l = f.geometry.projectLeft(p), rr = f.geometry.projectRight(p);
+          const Pixel l = f.geometry.projectSphere(p, 0.035, View::Left);
+          const Pixel rr = f.geometry.projectSphere(p, 0.035, View::Right);
           return m->mismatch(cache, View::Left, static_cast<float>(l.u), static_cast<float>(l.v), r) +
                  m->mismatch(cache, View::Right, static_cast<float>(rr.u), static_cast<float>(rr.v), r);
         },

@@ -724,7 +724,7 @@ TEST(ShapeCircle, OffAxisSphereIsMatchedWithItsPerspectiveSilhouette)
   frame.geometry = renderer.geometry();
   FeatureCache cache;
   cache.reset(frame);
-  const Pixel centre = frame.geometry.projectLeft(ball.trajectory.position);
+  const Pixel centre = frame.geometry.projectSphere(ball.trajectory.position, ball.radius, View::Left);
   const float radius = static_cast<float>(frame.geometry.fx() * ball.radius / ball.trajectory.position.z());
 
   // Scan the radius (0.1 px steps) at the true centre: the radius the cue prefers.
@@ -774,7 +774,7 @@ CueScores scoreAt(std::initializer_list<ObservationModel*> models, FeatureCache&
     ImageHypotheses h;
     h.view = view;
     h.resize(1);
-    const Pixel px = g.project(p, view);
+    const Pixel px = g.projectSphere(p, ball_radius, view);
     h.u[0] = static_cast<float>(px.u);
     h.v[0] = static_cast<float>(px.v);
     h.radius[0] = static_cast<float>(g.fx() * ball_radius / p.z());
@@ -1038,7 +1038,7 @@ TEST(Cues, TimingReport)
     p.z() = std::max(p.z(), 0.3);
     for (int k = 0; k < 2; ++k)
     {
-      const Pixel px = g.project(p, views[k].view);
+      const Pixel px = g.projectSphere(p, 0.035, views[k].view);
       views[k].u[i] = static_cast<float>(px.u);
       views[k].v[i] = static_cast<float>(px.v);
       views[k].radius[i] = static_cast<float>(g.fx() * 0.035 / p.z());

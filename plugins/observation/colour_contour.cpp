@@ -221,7 +221,7 @@ bool ColourContour::outline(const ImageHypotheses& hyp, int i, float focal, floa
   o.ey = 0.0f;
   o.a = o.b = r;
   if (has_radius && tunables_.perspective)
-    sphereSilhouette(u, v, r, focal, cx, cy, o.cu, o.cv, o.ex, o.ey, o.a, o.b);
+    sphereSilhouette(u, v, r, focal, cx, cy, o.ex, o.ey, o.a, o.b);
   return true;
 }
 

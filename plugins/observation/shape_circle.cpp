@@ -250,7 +250,7 @@ void ShapeCircle::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eige
     c.ex = 1.0f;
     c.ey = 0.0f;
     c.a = c.b = c.r;
-    c.ellipse = is_3d && perspective && sphereSilhouette(u, v, c.r, focal, cx, cy, c.cu, c.cv, c.ex, c.ey, c.a, c.b);
+    c.ellipse = is_3d && perspective && sphereSilhouette(u, v, c.r, focal, cx, cy, c.ex, c.ey, c.a, c.b);
     c.usable = true;
     const float extent = std::max(c.a, c.b) + static_cast<float>(reach);
     top = std::min(top, c.cv - extent);

@@ -88,22 +88,6 @@ bool PointModel3D::seedFromStereo(const StereoGeometry& g, int, ParticleSet& par
   return true;
 }
 
-namespace
-{
-/// How far (in units of the focal length) the middle of a sphere's image lies beyond the projection of its
-/// centre along one image axis: `c` is the centre's coordinate along that axis, `z` its depth, `r2` the squared
-/// radius. The planes through the optical centre that touch the sphere are at angles a +- b (tan a = c / z,
-/// sin b = r / hypot(c, z)), and the middle of tan(a - b) .. tan(a + b) is tan a (1 + tan^2 b) / (1 - tan^2 a
-/// tan^2 b). Off the axis a near sphere's image lies farther out (a ball of 6 cm at 0.7 m, 0.3 m off the axis:
-/// 0.3 % of the focal length, less in the view whose axis it is nearer, so that its disparity reads 0.7 % too
-/// large). The cues see that image, and box acquisition already takes it out.
-double silhouetteShift(double c, double z, double r2)
-{
-  const double t = c / z, s2 = r2 / (c * c + z * z - r2), ts2 = t * t * s2;
-  return s2 > 0.0 && ts2 < 1.0 ? t * s2 * (1.0 + t * t) / (1.0 - ts2) : 0.0;
-}
-}  // namespace
-
 void PointModel3D::project(const StereoGeometry& g, int, const ParticleSet& particles, ImageHypotheses& hyp) const
 {
   const int n = particles.size();
@@ -111,8 +95,8 @@ void PointModel3D::project(const StereoGeometry& g, int, const ParticleSet& part
   const double* xs = particles.states.col(0).data();
   const double* ys = particles.states.col(1).data();
   const double* zs = particles.states.col(2).data();
-  const double apparent = g.fx() * radius();
-  const double r2 = radius() * radius();
+  const double object_radius = radius();
+  const double apparent = g.fx() * object_radius;
   // Depth comes from disparity, not from size. A sharp outline cue given each particle's own f R / z prefers
   // the depth whose apparent size fits the outline, and an object radius off by 1 % then moves the depth by
   // about 1 % (the pendulum: 3.53 cm learned for 3.5 cm, 1.0 cm RMS for 0.6). So within `size_band` of the
@@ -137,16 +121,14 @@ void PointModel3D::project(const StereoGeometry& g, int, const ParticleSet& part
       hyp.valid[i] = 0;
       continue;
     }
-    const double inv_z = 1.0 / z;
-    const double x = hyp.view == View::Right ? xs[i] - g.baseline() : xs[i];
-    const double u = g.fx() * (x * inv_z + silhouetteShift(x, z, r2)) + g.cx();
-    const double v = g.fy() * (ys[i] * inv_z + silhouetteShift(ys[i], z, r2)) + g.cy();
-    hyp.u[i] = static_cast<float>(u);
-    hyp.v[i] = static_cast<float>(v);
+    // The middle of the sphere's image, which the cues see (off the axis a little beyond the centre's projection).
+    const Pixel middle = g.projectSphere({ xs[i], ys[i], z }, object_radius, hyp.view);
+    hyp.u[i] = static_cast<float>(middle.u);
+    hyp.v[i] = static_cast<float>(middle.v);
     const double offset = z - z_mean;
     const double z_size = z_mean > 0.0 ? z_mean + (offset > band ? offset - band : offset < -band ? offset + band : 0.0) : z;
     hyp.radius[i] = static_cast<float>(apparent / std::max(z_size, 1e-3));
-    hyp.valid[i] = g.inImage({ u, v }) ? 1 : 0;
+    hyp.valid[i] = g.inImage(middle) ? 1 : 0;
   }
 }
 

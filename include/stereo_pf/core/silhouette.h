@@ -7,43 +7,66 @@
 
 namespace stereo_pf
 {
-/// The image of a sphere whose centre projects to (u, v) with apparent radius r = f R / z (the 3D state
-/// models' convention) in a pinhole camera of focal length f and principal point (cx, cy): off the optical
-/// axis it is an ellipse, elongated away from the principal point (by 1 / cos(theta), ~6 % at 20 deg) and
-/// centred slightly further out. A circle of radius r would fit it best with a larger radius, i.e. a closer
-/// depth. Writes the ellipse's centre (cu, cv), radial unit vector (ex, ey) and semi-axes a (radial) >= b;
-/// returns false, writing nothing, when the circle is exact enough (on the axis) or the formula breaks down
-/// (the sphere reaching 90 deg off the axis). Along a direction at angle psi to (ex, ey) the outline lies at
-/// a b / sqrt(b^2 cos^2 psi + a^2 sin^2 psi) from (cu, cv).
-inline bool sphereSilhouette(float u, float v, float r, float f, float cx, float cy, float& cu, float& cv, float& ex,
-                             float& ey, float& a, float& b)
+/// How far, in units of the focal length, the middle of a sphere's image lies beyond the projection of its
+/// centre along one image axis: `c` is the centre's coordinate along that axis, `z` its depth, `r2` the squared
+/// radius. The planes through the optical centre that touch the sphere are at angles a +- b (tan a = c / z,
+/// sin b = r / hypot(c, z)), and the middle of tan(a - b) .. tan(a + b) is tan a (1 + tan^2 b) / (1 - tan^2 a
+/// tan^2 b). Off the axis a near sphere's image lies farther out (a ball of 6 cm at 0.7 m, 0.3 m off the axis:
+/// 0.3 % of the focal length, less in the view whose axis it is nearer, so that its disparity would read 0.7 %
+/// too large from the centres' projections). The 3D state models give the cues that middle; box acquisition
+/// takes it out.
+inline double sphereImageOffset(double c, double z, double r2)
+{
+  const double t = c / z, s2 = r2 / (c * c + z * z - r2), ts2 = t * t * s2;
+  return s2 > 0.0 && ts2 < 1.0 ? t * s2 * (1.0 + t * t) / (1.0 - ts2) : 0.0;
+}
+
+/// The image of a sphere centred at (u, v) with apparent radius r = f R / z (the 3D state models' convention;
+/// (u, v) is the middle of the image, as ImageHypotheses give it) in a pinhole camera of focal length f and
+/// principal point (cx, cy): off the optical axis it is an ellipse, elongated away from the principal point (by
+/// 1 / cos(theta), ~6 % at 20 deg, theta: the sphere centre's angle off the axis). A circle of radius r would
+/// fit it best with a larger radius, i.e. a closer depth. Writes the ellipse's radial unit vector (ex, ey) and
+/// semi-axes a (radial) >= b; returns false, writing nothing, when the circle is exact enough (on the axis) or
+/// the formula breaks down (the sphere reaching 90 deg off the axis). Along a direction at angle psi to (ex, ey)
+/// the outline lies at a b / sqrt(b^2 cos^2 psi + a^2 sin^2 psi) from (u, v).
+inline bool sphereSilhouette(float u, float v, float r, float f, float cx, float cy, float& ex, float& ey, float& a,
+                             float& b)
 {
   const float dx = u - cx, dy = v - cy;
   const float rho = std::sqrt(dx * dx + dy * dy);
   if (!(rho > 1e-3f * f))
     return false;
-  const float t = rho / f;                               // tan(theta), theta: centre's angle off the axis
-  const float cos_t = 1.0f / std::sqrt(1.0f + t * t);
-  const float sin_a = r * cos_t / f;                     // sin(alpha) = R / distance: angular radius
-  if (!(sin_a < 0.9f))
-    return false;
-  const float tan_a = sin_a / std::sqrt(1.0f - sin_a * sin_a);
+  // The silhouette cone spans theta - alpha .. theta + alpha radially (alpha: the angular radius), and the
+  // middle of the image lies at m = tan t (1 + tan^2 alpha) / (1 - tan^2 t tan^2 alpha) (t: theta), slightly
+  // beyond the centre's projection: solve that for tan t, alpha first taken at the middle's angle (it changes
+  // by a fraction of a percent).
+  const float m = rho / f;
+  float t = m, cos_t = 1.0f, sin_a = 0.0f, tan_a = 0.0f;
+  for (int it = 0; it < 2; ++it)
+  {
+    cos_t = 1.0f / std::sqrt(1.0f + t * t);
+    sin_a = r * cos_t / f;  // sin(alpha) = R / distance
+    if (!(sin_a < 0.9f))
+      return false;
+    tan_a = sin_a / std::sqrt(1.0f - sin_a * sin_a);
+    const float s = tan_a * tan_a;
+    t = 2.0f * m / ((1.0f + s) + std::sqrt((1.0f + s) * (1.0f + s) + 4.0f * m * m * s));
+  }
+  cos_t = 1.0f / std::sqrt(1.0f + t * t);
+  sin_a = r * cos_t / f;
+  tan_a = sin_a / std::sqrt(1.0f - sin_a * sin_a);
   const float den = 1.0f - t * tan_a;
   if (!(den > 0.05f))
     return false;
-  // The silhouette cone spans theta - alpha .. theta + alpha radially; its perpendicular half-width is
-  // f sin(alpha) / sqrt(cos^2 theta - sin^2 alpha).
+  // Its perpendicular half-width is f sin(alpha) / sqrt(cos^2 theta - sin^2 alpha).
   const float t_far = (t + tan_a) / den, t_near = (t - tan_a) / (1.0f + t * tan_a);
   const float perpendicular2 = cos_t * cos_t - sin_a * sin_a;
   if (!(perpendicular2 > 0.0f))
     return false;
   ex = dx / rho;
   ey = dy / rho;
-  const float centre = 0.5f * f * (t_far + t_near);
   a = 0.5f * f * (t_far - t_near);
   b = f * sin_a / std::sqrt(perpendicular2);
-  cu = cx + ex * centre;
-  cv = cy + ey * centre;
   return true;
 }
 

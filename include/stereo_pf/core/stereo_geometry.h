@@ -44,6 +44,9 @@ public:
   Pixel projectRight(const Eigen::Vector3d& p) const;
   /// Project into the given view.
   Pixel project(const Eigen::Vector3d& p, View view) const { return view == View::Left ? projectLeft(p) : projectRight(p); }
+  /// The middle of the image of a sphere of `radius` (m) centred at p in the given view: off the optical axis a
+  /// little beyond p's projection (sphereImageOffset() in core/silhouette.h). The 3D state models' hypotheses.
+  Pixel projectSphere(const Eigen::Vector3d& p, double radius, View view) const;
   /// Disparity u_left - u_right (pixels) of a point at depth z.
   double disparity(double z) const { return fx_ * baseline_ / z; }
   /// Depth of a point with disparity d (pixels).
