@@ -299,6 +299,8 @@ TEST(Tracking, NoDepthBiasFromTheObjectsSize)
         ++n;
       }
     }
+    std::printf("[ figures  ] radius %.2f m: mean depth %.4f m for %.4f (%+.2f %%)\n", radius, depth_sum / n, truth.z(),
+                100.0 * (depth_sum / n - truth.z()) / truth.z());
     EXPECT_LT(std::abs(depth_sum / n - truth.z()) / truth.z(), 0.01) << "mean depth " << depth_sum / n;
   }
 }

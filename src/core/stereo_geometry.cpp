@@ -5,8 +5,6 @@
 #include <cmath>
 #include <sstream>
 
-#include "stereo_pf/core/silhouette.h"
-
 namespace stereo_pf
 {
 StereoGeometry::StereoGeometry(double fx, double fy, double cx, double cy, double baseline, int width, int height)
@@ -42,13 +40,6 @@ Pixel StereoGeometry::projectRight(const Eigen::Vector3d& p) const
 {
   // The right camera sits at (+baseline, 0, 0) with the same orientation (rectified pair).
   return { fx_ * (p.x() - baseline_) / p.z() + cx_, fy_ * p.y() / p.z() + cy_ };
-}
-
-Pixel StereoGeometry::projectSphere(const Eigen::Vector3d& p, double radius, View view) const
-{
-  const double x = view == View::Right ? p.x() - baseline_ : p.x(), r2 = radius * radius;
-  return { fx_ * (x / p.z() + sphereImageOffset(x, p.z(), r2)) + cx_,
-           fy_ * (p.y() / p.z() + sphereImageOffset(p.y(), p.z(), r2)) + cy_ };
 }
 
 bool StereoGeometry::triangulate(const Pixel& left, double u_right, Eigen::Vector3d& p) const

@@ -7,18 +7,19 @@
 
 namespace stereo_pf
 {
-/// How far, in units of the focal length, the middle of a sphere's image lies beyond the projection of its
-/// centre along one image axis: `c` is the centre's coordinate along that axis, `z` its depth, `r2` the squared
-/// radius. The planes through the optical centre that touch the sphere are at angles a +- b (tan a = c / z,
-/// sin b = r / hypot(c, z)), and the middle of tan(a - b) .. tan(a + b) is tan a (1 + tan^2 b) / (1 - tan^2 a
-/// tan^2 b). Off the axis a near sphere's image lies farther out (a ball of 6 cm at 0.7 m, 0.3 m off the axis:
+/// The middle of a sphere's image is the projection of its centre scaled about the principal point by
+/// z^2 / (z^2 - r^2) (z: the centre's depth, r: the radius; this returns that factor, 1 when the sphere reaches
+/// the camera's plane). Along either image axis the planes through the optical centre that touch the sphere are
+/// at angles a +- b (tan a = c / z, sin b = r / hypot(c, z), c: the centre's coordinate along the axis), and the
+/// middle of tan(a - b) .. tan(a + b), tan a (1 + tan^2 b) / (1 - tan^2 a tan^2 b), is (c / z) z^2 / (z^2 - r^2).
+/// Off the axis a near sphere's image thus lies farther out (a ball of 6 cm at 0.7 m, 0.3 m off the axis: by
 /// 0.3 % of the focal length, less in the view whose axis it is nearer, so that its disparity would read 0.7 %
 /// too large from the centres' projections). The 3D state models give the cues that middle; box acquisition
 /// takes it out.
-inline double sphereImageOffset(double c, double z, double r2)
+inline double sphereImageScale(double z, double r2)
 {
-  const double t = c / z, s2 = r2 / (c * c + z * z - r2), ts2 = t * t * s2;
-  return s2 > 0.0 && ts2 < 1.0 ? t * s2 * (1.0 + t * t) / (1.0 - ts2) : 0.0;
+  const double z2 = z * z;
+  return z2 > r2 ? z2 / (z2 - r2) : 1.0;
 }
 
 /// The image of a sphere centred at (u, v) with apparent radius r = f R / z (the 3D state models' convention;

@@ -6,6 +6,8 @@
 #include <Eigen/Core>
 #include <string>
 
+#include "stereo_pf/core/silhouette.h"
+
 namespace stereo_pf
 {
 /// Which image of the stereo pair.
@@ -45,8 +47,13 @@ public:
   /// Project into the given view.
   Pixel project(const Eigen::Vector3d& p, View view) const { return view == View::Left ? projectLeft(p) : projectRight(p); }
   /// The middle of the image of a sphere of `radius` (m) centred at p in the given view: off the optical axis a
-  /// little beyond p's projection (sphereImageOffset() in core/silhouette.h). The 3D state models' hypotheses.
-  Pixel projectSphere(const Eigen::Vector3d& p, double radius, View view) const;
+  /// little beyond p's projection (sphereImageScale() in core/silhouette.h). The 3D state models' hypotheses.
+  Pixel projectSphere(const Eigen::Vector3d& p, double radius, View view) const
+  {
+    const double x = view == View::Right ? p.x() - baseline_ : p.x();
+    const double k = sphereImageScale(p.z(), radius * radius) / p.z();
+    return { fx_ * x * k + cx_, fy_ * p.y() * k + cy_ };
+  }
   /// Disparity u_left - u_right (pixels) of a point at depth z.
   double disparity(double z) const { return fx_ * baseline_ / z; }
   /// Depth of a point with disparity d (pixels).
