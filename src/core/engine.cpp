@@ -153,6 +153,9 @@ const std::vector<EngineField>& engineFields()
                                       "once tracked, found again (searching or lost) only with evidence within "
                                       "this of the object's when its first track began (1: found_similarity "
                                       "alone)"),
+    doubleField<&C::hold_margin>("hold_margin", 0.0, 1.0, true,
+                                 "while tracking, seen only with evidence within this of the object's when its "
+                                 "first track began (1: off)"),
     doubleField<&C::respawn_fraction>("respawn_fraction", 0.0, 1.0, true,
                                       "fraction of each set redrawn from the prior every frame while not tracking"),
     doubleField<&C::tracking_respawn_fraction>("tracking_respawn_fraction", 0.0, 1.0, false,
@@ -679,6 +682,9 @@ Support FilterEngine::judge(double evidence, double contrast, bool background_me
   // Found again only by what scores as the object did: a look-alike of lower evidence is not it.
   if (state_ != TrackState::Tracking && track_reference_ >= 0.0 &&
       evidence < track_reference_ - config_.reacquire_margin)
+    return Support::Unsure;
+  // ... and kept by what scores near it: far below is unsure (unsure_frames of those in a row lose the track).
+  if (state_ == TrackState::Tracking && track_reference_ >= 0.0 && evidence < track_reference_ - config_.hold_margin)
     return Support::Unsure;
   return Support::Seen;
 }
