@@ -35,22 +35,17 @@ struct Template
   double weight_sum = 0.0;     ///< sum of w over pixels
 };
 
-/// Where a sphere's image extends along one image axis: the centre and half-size of the interval between
-/// the two planes through the optical centre that touch the sphere (exact for a pinhole camera; `c` is the
-/// centre's coordinate along that axis, `z` its depth, `f` the focal length along that axis).
-struct Extent
-{
-  double centre = 0.0;
-  double half = 0.0;
-};
-Extent sphereExtent(double c, double z, double r, double f)
+/// Half the size of a sphere's image along one image axis: of the interval between the two planes through the
+/// optical centre that touch the sphere (exact for a pinhole camera; `c` is the centre's coordinate along that
+/// axis, `z` its depth, `f` the focal length along that axis; 0 when the sphere reaches the camera). Its middle
+/// is StereoGeometry::projectSphere().
+double sphereHalfExtent(double c, double z, double r, double f)
 {
   const double d = std::hypot(c, z);
   if (!(r < d) || !(z > 0.0))
-    return { f * c / z, 0.0 };
+    return 0.0;
   const double a = std::atan2(c, z), b = std::asin(r / d);
-  const double lo = f * std::tan(a - b), hi = f * std::tan(a + b);
-  return { 0.5 * (lo + hi), 0.5 * (hi - lo) };
+  return 0.5 * f * (std::tan(a + b) - std::tan(a - b));
 }
 
 /// The sphere whose images have box centres (left u, v), right u and box half-sizes (hu, hv): starts from
@@ -63,19 +58,18 @@ void sphereFromBoxes(const StereoGeometry& g, const Pixel& left, double right_u,
   radius = 0.5 * (hu * centre.z() / g.fx() + hv * centre.z() / g.fy());
   for (int it = 0; it < 8; ++it)
   {
-    const Extent eu = sphereExtent(centre.x(), centre.z(), radius, g.fx());
-    const Extent ev = sphereExtent(centre.y(), centre.z(), radius, g.fy());
-    const Extent er = sphereExtent(centre.x() - g.baseline(), centre.z(), radius, g.fx());
-    if (!(eu.half > 0.0 && ev.half > 0.0))
+    const double half_u = sphereHalfExtent(centre.x(), centre.z(), radius, g.fx());
+    const double half_v = sphereHalfExtent(centre.y(), centre.z(), radius, g.fy());
+    if (!(half_u > 0.0 && half_v > 0.0))
       return;
-    const Pixel corrected{ left.u - (eu.centre - g.fx() * centre.x() / centre.z()),
-                           left.v - (ev.centre - g.fy() * centre.y() / centre.z()) };
-    const double corrected_right = right_u - (er.centre - g.fx() * (centre.x() - g.baseline()) / centre.z());
+    const Pixel l = g.projectLeft(centre), ml = g.projectSphere(centre, radius, View::Left);
+    const double r_u = g.projectRight(centre).u, mr_u = g.projectSphere(centre, radius, View::Right).u;
+    const Pixel corrected{ left.u - (ml.u - l.u), left.v - (ml.v - l.v) };
     Eigen::Vector3d next;
-    if (!g.triangulate(corrected, corrected_right, next))
+    if (!g.triangulate(corrected, right_u - (mr_u - r_u), next))
       return;
     centre = next;
-    radius *= 0.5 * (hu / eu.half + hv / ev.half);
+    radius *= 0.5 * (hu / half_u + hv / half_v);
   }
 }
 }  // namespace
