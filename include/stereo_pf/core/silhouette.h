@@ -40,7 +40,9 @@ inline bool sphereSilhouette(float u, float v, float r, float f, float cx, float
   // The silhouette cone spans theta - alpha .. theta + alpha radially (alpha: the angular radius), and the
   // middle of the image lies at m = tan t (1 + tan^2 alpha) / (1 - tan^2 t tan^2 alpha) (t: theta), slightly
   // beyond the centre's projection: solve that for tan t, alpha first taken at the middle's angle (it changes
-  // by a fraction of a percent).
+  // by a fraction of a percent). The fixed point is tan t = m (1 - (r / f)^2) (sphereImageScale()); that closed
+  // form is cheaper, but differs in the last bits and, through the filter's sensitivity to such differences,
+  // failed Tracking.ABallThrownAtTheCameraIsFollowedByTheLocalSearch (worst error 5.8 % of range for 1.7 %).
   const float m = rho / f;
   float t = m, cos_t = 1.0f, sin_a = 0.0f, tan_a = 0.0f;
   for (int it = 0; it < 2; ++it)
