@@ -76,6 +76,7 @@ void ColourHSI::applyTunables(const Tunables& t)
   candidate_.reset(binning_.bins(), t.samples * t.samples);
   ring_.reset(binning_.bins(), t.surround_samples);
   ring_cos_.resize(t.surround_samples);
+  ring_values_.resize(t.surround_samples);
   ring_sin_.resize(t.surround_samples);
   for (int k = 0; k < t.surround_samples; ++k)
   {
@@ -239,13 +240,18 @@ void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen:
     double penalty = 0.0;
     if (ring_radius > 0.0f)
     {
+      // The ring's bins first, then counted in one pass (counting while reading makes every read wait for
+      // the previous count's store).
+      uint8_t* values = ring_values_.data();
+      int m = 0;
       for (int k = 0; k < ring_n; ++k)
       {
         const int x = cvRound(u + ring_radius * ring_cos_[k]);
         const int y = cvRound(v + ring_radius * ring_sin_[k]);
         if (x >= 0 && x < width && y >= 0 && y < height)
-          ring_.add(data[y * step + x]);
+          values[m++] = data[y * step + x];
       }
+      ring_.addValues(values, m);
       penalty = surround_weight * ring_.scoreAndClear(target_);
     }
     log_likelihood[i] = -((1.0 - rho) + penalty) * inv_two_sigma2;

@@ -134,6 +134,27 @@ void SparseHistogram::addGrid(const uint8_t* data, size_t step, const int* rows,
   n_ += nr * nc;
 }
 
+void SparseHistogram::addValues(const uint8_t* values, int n)
+{
+  int* counts = counts_.data();
+  int* touched = touched_.data();
+  uint32_t* stamp = stamp_.data();
+  const uint32_t epoch = epoch_;
+  int n_touched = n_touched_;
+  for (int k = 0; k < n; ++k)
+  {
+    const int b = values[k];
+    ++counts[b * kBanks + (k & 3)];
+    if (stamp[b] != epoch)
+    {
+      stamp[b] = epoch;
+      touched[n_touched++] = b;
+    }
+  }
+  n_touched_ = n_touched;
+  n_ += std::max(n, 0);
+}
+
 double SparseHistogram::scoreAndClear(const TargetHistogram& target)
 {
   const bool score = n_ > 0 && target.bins() == bins();

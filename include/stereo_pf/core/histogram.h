@@ -93,6 +93,9 @@ public:
   /// different banks (neighbouring pixels usually share a bin, and a single counter would make every
   /// increment wait for the previous one's store).
   void addGrid(const uint8_t* data, size_t step, const int* rows, int nr, const int* cols, int nc);
+  /// Add the samples values[0..n) (each must be < bins; not checked): add() on each, kept in registers and
+  /// spread over the banks as addGrid() does.
+  void addValues(const uint8_t* values, int n);
   /// Bhattacharyya coefficient rho = sum_b sqrt(c_b / n) sqrt(q_b) of the accumulated candidate against
   /// `target` (which must have the same number of bins), then clears the candidate.
   /// Returns 0 when no sample was added or the target is invalid.
