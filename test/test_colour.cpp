@@ -508,6 +508,38 @@ TEST(Histogram, GridSamplingMatchesSingleSamples)
   }
 }
 
+TEST(Histogram, ValueBatchesScoreExactlyAsSingleSamples)
+{
+  // addValues() must give the very scores of add() per value (the surround ring relies on it: same bits).
+  const int bins = 64;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> d(0.0, 1.0);
+  std::vector<double> target_counts(bins);
+  for (double& c : target_counts)
+    c = d(rng);
+  const TargetHistogram target(target_counts);
+  SparseHistogram batch, single;
+  batch.reset(bins, 32);
+  single.reset(bins, 32);
+  std::uniform_int_distribution<int> bin(0, bins - 1), len(0, 40), runs(0, 3);
+  for (int trial = 0; trial < 300; ++trial)
+  {
+    std::vector<uint8_t> values(len(rng));
+    for (size_t k = 0; k < values.size(); ++k)
+      values[k] = k > 0 && runs(rng) > 0 ? values[k - 1] : static_cast<uint8_t>(bin(rng));  // runs, as on a ring
+    batch.addValues(values.data(), static_cast<int>(values.size()));
+    for (uint8_t v : values)
+      single.add(v);
+    ASSERT_EQ(batch.samples(), static_cast<int>(values.size()));
+    const double expected = single.scoreAndClear(target);
+    ASSERT_EQ(batch.scoreAndClear(target), expected) << "trial " << trial;
+    if (!values.empty())
+    {
+      ASSERT_GT(expected, 0.0);
+    }
+  }
+}
+
 // ---------------------------------------------------------------------------------------------------
 // The ColourHSI plugin
 
