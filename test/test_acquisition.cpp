@@ -267,6 +267,8 @@ TEST(Tracking, NoDepthBiasFromTheObjectsSize)
 {
   // The default cues and Position3D on a static 2 cm and 8 cm ball in front of clutter: the learned size, and
   // the size band, leave depth to disparity (an assumed 3.5 cm made a 4 cm ball ~6 % short, an 8 cm cube ~17 %).
+  // One run's mean depth moves by up to ~1 % from engine seed to engine seed (on a static scene the frames share
+  // their error), so the bias is the mean over three seeds, and each run is held to twice the bound.
   using namespace stereo_pf;
   for (double radius : { 0.02, 0.08 })
   {
@@ -278,30 +280,42 @@ TEST(Tracking, NoDepthBiasFromTheObjectsSize)
     SceneDescription d = scene({ s }, 2.4, true);
     d.frames = 30;
     SceneRenderer renderer(d);
-    FilterEngine engine(plugin<Position3D>("state_model"),
-                        { plugin<ColourHSI>("colour"), plugin<TemplateMatch>("template"),
-                          plugin<ColourContour>("colour_contour") },
-                        EngineConfig());
-    cv::Mat l, r;
-    auto frame = [&](int k) { return renderFrame(renderer, k, l, r); };
-    std::string error;
-    ASSERT_TRUE(engine.learnTarget(frame(0), renderer.targetRoi(0), error)) << error;
-    EXPECT_NEAR(engine.targetRadius(), radius, 0.03 * radius);
-    double depth_sum = 0.0;
-    int n = 0;
-    for (int k = 0; k < d.frames; ++k)
+    double bias_sum = 0.0;
+    const int seeds = 3;
+    for (int seed = 1; seed <= seeds; ++seed)
     {
-      const FrameResult res = engine.step(frame(k));
-      ASSERT_EQ(res.state, TrackState::Tracking) << "frame " << k;
-      if (k >= 10)
+      EngineConfig config;
+      config.seed = seed;
+      FilterEngine engine(plugin<Position3D>("state_model"),
+                          { plugin<ColourHSI>("colour"), plugin<TemplateMatch>("template"),
+                            plugin<ColourContour>("colour_contour") },
+                          config);
+      cv::Mat l, r;
+      auto frame = [&](int k) { return renderFrame(renderer, k, l, r); };
+      std::string error;
+      ASSERT_TRUE(engine.learnTarget(frame(0), renderer.targetRoi(0), error)) << error;
+      EXPECT_NEAR(engine.targetRadius(), radius, 0.03 * radius);
+      double depth_sum = 0.0;
+      int n = 0;
+      for (int k = 0; k < d.frames; ++k)
       {
-        depth_sum += res.estimate.position.z();
-        ++n;
+        const FrameResult res = engine.step(frame(k));
+        ASSERT_EQ(res.state, TrackState::Tracking) << "seed " << seed << ", frame " << k;
+        if (k >= 10)
+        {
+          depth_sum += res.estimate.position.z();
+          ++n;
+        }
       }
+      const double bias = (depth_sum / n - truth.z()) / truth.z();
+      std::printf("[ figures  ] radius %.2f m, seed %d: mean depth %.4f m for %.4f (%+.2f %%)\n", radius, seed,
+                  depth_sum / n, truth.z(), 100.0 * bias);
+      EXPECT_LT(std::abs(bias), 0.02) << "seed " << seed << ": mean depth " << depth_sum / n;
+      bias_sum += bias;
     }
-    std::printf("[ figures  ] radius %.2f m: mean depth %.4f m for %.4f (%+.2f %%)\n", radius, depth_sum / n, truth.z(),
-                100.0 * (depth_sum / n - truth.z()) / truth.z());
-    EXPECT_LT(std::abs(depth_sum / n - truth.z()) / truth.z(), 0.01) << "mean depth " << depth_sum / n;
+    std::printf("[ figures  ] radius %.2f m: depth bias %+.2f %% (mean of %d seeds)\n", radius, 100.0 * bias_sum / seeds,
+                seeds);
+    EXPECT_LT(std::abs(bias_sum / seeds), 0.01);
   }
 }
 
