@@ -156,6 +156,9 @@ const std::vector<EngineField>& engineFields()
     doubleField<&C::hold_margin>("hold_margin", 0.0, 1.0, true,
                                  "while tracking, seen only with evidence within this of the object's when its "
                                  "first track began (1: off)"),
+    doubleField<&C::hold_follow>("hold_follow", 0.0, 1.0, true,
+                                 "the measure of hold_margin follows the evidence of the track's seen frames by this "
+                                 "much per frame, never above the first track's (0: that alone)"),
     doubleField<&C::respawn_fraction>("respawn_fraction", 0.0, 1.0, true,
                                       "fraction of each set redrawn from the prior every frame while not tracking"),
     doubleField<&C::tracking_respawn_fraction>("tracking_respawn_fraction", 0.0, 1.0, false,
@@ -323,7 +326,7 @@ bool FilterEngine::learnTarget(const StereoFrame& frame, const cv::Rect& roi, st
       return false;
     }
   }
-  track_reference_ = -1.0;
+  track_reference_ = hold_reference_ = -1.0;
   if (!config_.acquire)
   {
     cue_trust_.assign(observation_models_.size(), 1.0);
@@ -499,7 +502,7 @@ bool FilterEngine::loadTarget(const std::string& path, std::string& error)
       const double value = !t.empty() && t.isReal() ? static_cast<double>(t) : 1.0;
       cue_trust_[k] = std::isfinite(value) ? std::clamp(value, 0.0, 1.0) : 1.0;
     }
-    track_reference_ = -1.0;
+    track_reference_ = hold_reference_ = -1.0;
     return true;
   }
   catch (const cv::Exception& e)
@@ -684,7 +687,7 @@ Support FilterEngine::judge(double evidence, double contrast, bool background_me
       evidence < track_reference_ - config_.reacquire_margin)
     return Support::Unsure;
   // ... and kept by what scores near it: far below is unsure (unsure_frames of those in a row lose the track).
-  if (state_ == TrackState::Tracking && track_reference_ >= 0.0 && evidence < track_reference_ - config_.hold_margin)
+  if (state_ == TrackState::Tracking && hold_reference_ >= 0.0 && evidence < hold_reference_ - config_.hold_margin)
     return Support::Unsure;
   return Support::Seen;
 }
@@ -1141,7 +1144,11 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
   result.support = support;
   updateTrackState(support, result);
   if (track_reference_ < 0.0 && support == Support::Seen && state_ == TrackState::Tracking)
-    track_reference_ = result.evidence;
+    track_reference_ = hold_reference_ = result.evidence;
+  if (state_ != TrackState::Tracking)
+    hold_reference_ = track_reference_;
+  else if (support == Support::Seen && hold_reference_ >= 0.0)
+    hold_reference_ = std::min(track_reference_, hold_reference_ + config_.hold_follow * (result.evidence - hold_reference_));
   if (support == Support::Seen && state_ == TrackState::Tracking)
     adaptTargets();
   last_estimate_ = state_ == TrackState::Tracking ? result.estimate : StateEstimate{};

@@ -83,6 +83,12 @@ struct EngineConfig
   /// scoring well above found_similarity but well below the object (a patch of its colour, the view after the
   /// object has left it) is not kept by that; the object's own evidence varies by ~0.15 along a track. 1: off.
   double hold_margin = 0.2;
+  /// The measure hold_margin applies to follows the evidence of the track's seen frames by this much per frame,
+  /// never above track_reference: an object whose look changes slowly (a box turning a face of another colour to
+  /// the camera, followed by the adapting cues, anchored to the box) is kept, while a sudden drop (the track left
+  /// on a patch of the object's colour) is still unsure, since unsure frames do not move it. Back to
+  /// track_reference when a track is lost. 0: the first track's evidence alone.
+  double hold_follow = 0.05;
   double respawn_fraction = 0.2;      ///< fraction of each set redrawn every frame while not Tracking
   /// While Tracking: the share of each set moved every frame to where the cues' target maps see the target
   /// (the recovery search: a fast object's jump, a bounce, the real object beside a distractor), each with the
@@ -336,6 +342,8 @@ private:
   /// The evidence on the first seen frame of the first track since the target was learned or loaded (-1: none
   /// yet): what the object itself scores, the measure a re-acquisition is held to (reacquire_margin).
   double track_reference_ = -1.0;
+  /// What hold_margin applies to (EngineConfig::hold_follow): track_reference_, following the track's seen frames.
+  double hold_reference_ = -1.0;
   ViewingVolume volume_;
   /// The last acquisition from a box (its match: acquisition_), applied at the next step.
   struct Acquired
