@@ -49,7 +49,7 @@ protected:
   double object_radius_ = 0.0;  ///< radius of the tracked sphere, m (0: learned with the target)
   /// Relative depth band around the cloud's mean depth in which every particle gets that depth's apparent
   /// radius (so a size error cannot bias depth; 0: each particle its own f R / z, the thesis).
-  double size_band_ = 0.1;
+  double size_band_ = 0.3;
 };
 
 }  // namespace stereo_pf
