@@ -313,8 +313,8 @@ TEST(Tracking, NoDepthBiasFromTheObjectsSize)
       EXPECT_LT(std::abs(bias), 0.02) << "seed " << seed << ": mean depth " << depth_sum / n;
       bias_sum += bias;
     }
-    std::printf("[ figures  ] radius %.2f m: depth bias %+.2f %% (mean of %d seeds)\n", radius, 100.0 * bias_sum / seeds,
-                seeds);
+    std::printf("[ figures  ] radius %.2f m: depth bias %+.2f %% (mean of %d seeds)\n", radius,
+                100.0 * bias_sum / seeds, seeds);
     EXPECT_LT(std::abs(bias_sum / seeds), 0.01);
   }
 }

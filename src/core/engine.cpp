@@ -1148,7 +1148,8 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
   if (state_ != TrackState::Tracking)
     hold_reference_ = track_reference_;
   else if (support == Support::Seen && hold_reference_ >= 0.0)
-    hold_reference_ = std::min(track_reference_, hold_reference_ + config_.hold_follow * (result.evidence - hold_reference_));
+    hold_reference_ =
+        std::min(track_reference_, hold_reference_ + config_.hold_follow * (result.evidence - hold_reference_));
   if (support == Support::Seen && state_ == TrackState::Tracking)
     adaptTargets();
   last_estimate_ = state_ == TrackState::Tracking ? result.estimate : StateEstimate{};

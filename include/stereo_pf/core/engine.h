@@ -40,7 +40,7 @@ enum class Support
 {
   Seen,            ///< evidence >= found_similarity and above the background by background_margin; while not
                    ///< tracking, also within reacquire_margin of the track's reference evidence, while tracking
-                   ///< within hold_margin of it
+                   ///< within hold_margin of it (as it follows the track's seen frames: hold_follow)
   Unsure,          ///< between the thresholds: neither counts towards nor breaks a run of seen or unseen frames
   LowEvidence,     ///< evidence < lost_similarity
   LikeBackground,  ///< background locations score as well as the best particle (within background_margin)
@@ -78,10 +78,11 @@ struct EngineConfig
   /// look-alike or a patch of backdrop that scores well above found_similarity, but below the object itself,
   /// is not taken for it while it is hidden. 1: found_similarity alone.
   double reacquire_margin = 0.05;
-  /// While Tracking, a frame counts as seen only with evidence within this of track_reference too (below it, as
-  /// unsure: unsure_frames of them in a row lose the track). A track that has left the object for something
-  /// scoring well above found_similarity but well below the object (a patch of its colour, the view after the
-  /// object has left it) is not kept by that; the object's own evidence varies by ~0.15 along a track. 1: off.
+  /// While Tracking, a frame counts as seen only with evidence within this of track_reference (as hold_follow
+  /// moves it) too; below it, as unsure (unsure_frames of them in a row lose the track). A track that has left
+  /// the object for something scoring well above found_similarity but well below the object (a patch of its
+  /// colour, the view after the object has left it) is not kept by that; the object's own evidence varies by
+  /// ~0.15 along a track. 1: off.
   double hold_margin = 0.2;
   /// The measure hold_margin applies to follows the evidence of the track's seen frames by this much per frame,
   /// never above track_reference: an object whose look changes slowly (a box turning a face of another colour to
