@@ -604,6 +604,59 @@ TEST(TemplateMatch, PeaksAtTheObjectInBothViewsAndSurvivesSaveAndLoad)
   EXPECT_LT((ll_learned - ll_loaded).cwiseAbs().maxCoeff(), 1e-9);
 }
 
+TEST(TemplateMatch, ConvertsOnlyTheRowsItsWindowsReadAndScoresAsOnTheWholeImage)
+{
+  // evaluate() and adapt() ask the cache for the grey rows their windows reach only. Scores must be those on the
+  // whole grey image, also for windows reaching over the image's edges (sample() clamps them to the edge rows).
+  // The band's cache first holds a black frame's grey rows, so a row it left out would read 0.
+  using namespace stereo_pf;
+  const Eigen::Vector3d truth(-0.1, 0.05, 1.1);
+  cv::Mat l, r;
+  cv::Rect box;
+  const StereoFrame f = render(scene({ ball(0.04, truth, cv::Vec3d(200, 200, 200)) }, 2.2, true), l, r, box);
+  FeatureCache whole;
+  whole.reset(f);
+  auto m = plugin<TemplateMatch>("template");
+  std::string error;
+  ASSERT_TRUE(m->learnTarget(whole, View::Left, box, error)) << error;
+  whole.gray(View::Left);
+  StereoFrame black = f;
+  black.left = cv::Mat(f.left.size(), f.left.type(), cv::Scalar::all(0));  // new buffers, not f's
+  black.right = cv::Mat(f.right.size(), f.right.type(), cv::Scalar::all(0));
+  const float w = static_cast<float>(f.left.cols), h = static_cast<float>(f.left.rows);
+  const Pixel at = f.geometry.projectLeft(truth);
+  const float radius = static_cast<float>(f.geometry.apparentRadius(0.04, truth.z()));
+  const std::vector<std::array<float, 3>> places = { { static_cast<float>(at.u), static_cast<float>(at.v), radius },
+                                                      { 5.0f, 2.0f, 10.0f },
+                                                      { w - 3.0f, h - 1.5f, 10.0f },
+                                                      { 0.5f * w, -4.0f, 8.0f },
+                                                      { 0.5f * w, h + 3.0f, 8.0f },
+                                                      { 0.3f * w, 0.5f * h, 300.0f } };
+  Eigen::VectorXd sim_whole(1);
+  for (size_t i = 0; i < places.size(); ++i)
+  {
+    ImageHypotheses one;  // one at a time: together their band would be the union
+    one.view = View::Left;
+    one.resize(1);
+    one.u[0] = places[i][0];
+    one.v[0] = places[i][1];
+    one.radius[0] = places[i][2];
+    one.valid[0] = 1;
+    FeatureCache band;
+    band.reset(black);
+    band.gray(View::Left);
+    band.reset(f);
+    Eigen::VectorXd ll_band(1), sim_band(1), ll_whole(1);
+    m->evaluate(band, one, ll_band, sim_band);
+    m->evaluate(whole, one, ll_whole, sim_whole);
+    EXPECT_EQ(ll_band[0], ll_whole[0]) << "hypothesis " << i;
+    if (i == 0)
+    {
+      EXPECT_GT(sim_whole[0], 0.8);
+    }
+  }
+}
+
 namespace
 {
 /// A cue whose scores a test scripts (evaluate()): it learns nothing and saves nothing.

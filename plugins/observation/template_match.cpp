@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
@@ -162,6 +163,23 @@ void TemplateMatch::setTarget(const std::vector<float>& learned, double box_radi
   useTemplate();
 }
 
+std::pair<int, int> TemplateMatch::windowRows(const ImageHypotheses& hyp, int height) const
+{
+  // Only the rows the windows reach need the grey conversion (a band of the image while tracking). sample()
+  // clamps to the image and the span is clipped alike, so the edge rows it then reads are in the span.
+  float top = std::numeric_limits<float>::infinity(), bottom = -std::numeric_limits<float>::infinity();
+  for (int i = 0; i < hyp.size(); ++i)
+  {
+    if (!hyp.valid[i] || !std::isfinite(hyp.u[i]) || !std::isfinite(hyp.v[i]) || !std::isfinite(hyp.radius[i]))
+      continue;
+    double hx, hy;
+    halfSizes(hyp.radius[i], hx, hy);
+    top = std::min(top, static_cast<float>(hyp.v[i] - hy - 1.0));
+    bottom = std::max(bottom, static_cast<float>(hyp.v[i] + hy + 1.0));
+  }
+  return top <= bottom ? rowSpan(top, bottom, height) : std::pair<int, int>(0, 0);
+}
+
 const std::vector<float>& TemplateMatch::window(const cv::Mat& gray, double u, double v, double radius)
 {
   double hx, hy;
@@ -205,7 +223,8 @@ void TemplateMatch::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Ei
     similarity.setZero();
     return;
   }
-  const cv::Mat& gray = cache.gray(hyp.view);
+  const std::pair<int, int> rows = windowRows(hyp, cache.image(hyp.view).rows);
+  const cv::Mat& gray = cache.gray(hyp.view, rows.first, rows.second);
   for (int i = 0; i < n; ++i)
   {
     double c = -1.0;
@@ -226,7 +245,10 @@ void TemplateMatch::adapt(FeatureCache& cache, const ImageHypotheses& estimate)
 {
   if (current_.empty() || tunables_.adapt_rate <= 0.0 || estimate.size() < 1 || !estimate.valid[0])
     return;
-  window(cache.gray(estimate.view), estimate.u[0], estimate.v[0], estimate.radius[0]);
+  if (!std::isfinite(estimate.u[0]) || !std::isfinite(estimate.v[0]) || !std::isfinite(estimate.radius[0]))
+    return;
+  const std::pair<int, int> rows = windowRows(estimate, cache.image(estimate.view).rows);
+  window(cache.gray(estimate.view, rows.first, rows.second), estimate.u[0], estimate.v[0], estimate.radius[0]);
   if (score(scratch_) < tunables_.adapt_min || !normalise(scratch_))
     return;  // not confidently the object: the template stays
   const double a = tunables_.adapt_rate;
