@@ -207,18 +207,11 @@ void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen:
   };
 
   // Only the rows the windows and rings reach need binning (a band of the image while tracking).
-  float top = static_cast<float>(height), bottom = -1.0f;
-  for (int i = 0; i < n; ++i)
-  {
-    if (!hyp.valid[i] || !std::isfinite(hyp.v[i]))
-      continue;
+  const std::pair<int, int> rows = windowRowSpan(hyp, height, [&](int i) {
     float half, ring;
     extent(i, half, ring);
-    const float reach = std::max(half, ring) + 1.0f;  // + 1: rounding to pixel centres
-    top = std::min(top, hyp.v[i] - reach);
-    bottom = std::max(bottom, hyp.v[i] + reach);
-  }
-  const std::pair<int, int> rows = rowSpan(top, bottom, height);
+    return std::max(half, ring);
+  });
   // Once per view per frame (in the rows not binned yet), shared by every hypothesis.
   const cv::Mat& bins = binImage(cache, hyp.view, rows.first, rows.second);
   const size_t step = bins.step[0];

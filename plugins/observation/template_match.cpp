@@ -6,7 +6,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
@@ -167,17 +166,11 @@ std::pair<int, int> TemplateMatch::windowRows(const ImageHypotheses& hyp, int he
 {
   // Only the rows the windows reach need the grey conversion (a band of the image while tracking). sample()
   // clamps to the image and the span is clipped alike, so the edge rows it then reads are in the span.
-  float top = std::numeric_limits<float>::infinity(), bottom = -std::numeric_limits<float>::infinity();
-  for (int i = 0; i < hyp.size(); ++i)
-  {
-    if (!hyp.valid[i] || !std::isfinite(hyp.u[i]) || !std::isfinite(hyp.v[i]) || !std::isfinite(hyp.radius[i]))
-      continue;
+  return windowRowSpan(hyp, height, [&](int i) {
     double hx, hy;
     halfSizes(hyp.radius[i], hx, hy);
-    top = std::min(top, static_cast<float>(hyp.v[i] - hy - 1.0));
-    bottom = std::max(bottom, static_cast<float>(hyp.v[i] + hy + 1.0));
-  }
-  return top <= bottom ? rowSpan(top, bottom, height) : std::pair<int, int>(0, 0);
+    return hy;
+  });
 }
 
 const std::vector<float>& TemplateMatch::window(const cv::Mat& gray, double u, double v, double radius)

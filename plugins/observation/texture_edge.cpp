@@ -322,16 +322,7 @@ void TextureEdge::evaluate(FeatureCache& cache, const ImageHypotheses& hyp,
   };
 
   // Only the rows the windows reach need edge bins (a band of the image while tracking).
-  float top = static_cast<float>(height), bottom = -1.0f;
-  for (int i = 0; i < n; ++i)
-  {
-    if (!hyp.valid[i] || !std::isfinite(hyp.v[i]))
-      continue;
-    const float reach = halfSize(i) + 1.0f;  // + 1: rounding to pixel centres
-    top = std::min(top, hyp.v[i] - reach);
-    bottom = std::max(bottom, hyp.v[i] + reach);
-  }
-  const std::pair<int, int> rows = rowSpan(top, bottom, height);
+  const std::pair<int, int> rows = windowRowSpan(hyp, height, halfSize);
   // Once per view per frame (in the rows not binned yet), shared by every hypothesis.
   const cv::Mat& bins = binImage(cache, hyp.view, rows.first, rows.second);
   const size_t step = bins.step[0];

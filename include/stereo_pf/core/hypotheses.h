@@ -44,4 +44,24 @@ inline std::pair<int, int> rowSpan(float top, float bottom, int height)
   return { first, last };
 }
 
+/// rowSpan() of the windows of `hyp`'s valid hypotheses, each reaching `reach(i)` pixels above and below its row
+/// (plus one: rounding to pixel centres); hypotheses with a row or reach that is not finite are left out, and
+/// none left gives an empty span.
+template <class Reach>
+std::pair<int, int> windowRowSpan(const ImageHypotheses& hyp, int height, Reach reach)
+{
+  float top = static_cast<float>(height), bottom = -1.0f;
+  for (int i = 0; i < hyp.size(); ++i)
+  {
+    if (!hyp.valid[i] || !std::isfinite(hyp.v[i]))
+      continue;
+    const float r = static_cast<float>(reach(i)) + 1.0f;
+    if (!std::isfinite(r))
+      continue;
+    top = std::min(top, hyp.v[i] - r);
+    bottom = std::max(bottom, hyp.v[i] + r);
+  }
+  return rowSpan(top, bottom, height);
+}
+
 }  // namespace stereo_pf
