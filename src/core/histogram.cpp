@@ -87,22 +87,40 @@ void SparseHistogram::reset(int bins, int max_samples)
   n_ = 0;
 }
 
-void SparseHistogram::addGrid(const uint8_t* data, size_t step, const int* rows, int nr, const int* cols, int nc)
+/// The counting state in locals: a counter store could alias the members (int / uint32_t), which would force a
+/// reload and a store of each after every sample. count() then mark() per sample; store() writes it back.
+struct SparseHistogram::Tally
 {
-  // Members in locals: a counter store could alias them (int / uint32_t), which would force a reload
-  // and a store of each after every sample.
-  int* counts = counts_.data();
-  int* touched = touched_.data();
-  uint32_t* stamp = stamp_.data();
-  const uint32_t epoch = epoch_;
-  int n_touched = n_touched_;
-  auto mark = [&](int b) {
+  explicit Tally(SparseHistogram& h)
+    : counts(h.counts_.data()), touched(h.touched_.data()), stamp(h.stamp_.data()), epoch(h.epoch_),
+      n_touched(h.n_touched_)
+  {
+  }
+  void count(int b, int bank) { ++counts[b * kBanks + bank]; }
+  void mark(int b)
+  {
     if (stamp[b] != epoch)
     {
       stamp[b] = epoch;
       touched[n_touched++] = b;
     }
-  };
+  }
+  void store(SparseHistogram& h, int samples) const
+  {
+    h.n_touched_ = n_touched;
+    h.n_ += samples;
+  }
+
+  int* counts;
+  int* touched;
+  uint32_t* stamp;
+  const uint32_t epoch;
+  int n_touched;
+};
+
+void SparseHistogram::addGrid(const uint8_t* data, size_t step, const int* rows, int nr, const int* cols, int nc)
+{
+  Tally t(*this);
   static_assert(kBanks == 4, "the unrolled loop below assumes 4 banks");
   for (int j = 0; j < nr; ++j)
   {
@@ -114,45 +132,34 @@ void SparseHistogram::addGrid(const uint8_t* data, size_t step, const int* rows,
       const int b1 = row[cols[k + 1]];
       const int b2 = row[cols[k + 2]];
       const int b3 = row[cols[k + 3]];
-      ++counts[b0 * kBanks];
-      ++counts[b1 * kBanks + 1];
-      ++counts[b2 * kBanks + 2];
-      ++counts[b3 * kBanks + 3];
-      mark(b0);
-      mark(b1);
-      mark(b2);
-      mark(b3);
+      t.count(b0, 0);
+      t.count(b1, 1);
+      t.count(b2, 2);
+      t.count(b3, 3);
+      t.mark(b0);
+      t.mark(b1);
+      t.mark(b2);
+      t.mark(b3);
     }
     for (; k < nc; ++k)
     {
       const int b = row[cols[k]];
-      ++counts[b * kBanks + (k & 3)];
-      mark(b);
+      t.count(b, k & 3);
+      t.mark(b);
     }
   }
-  n_touched_ = n_touched;
-  n_ += nr * nc;
+  t.store(*this, nr * nc);
 }
 
 void SparseHistogram::addValues(const uint8_t* values, int n)
 {
-  int* counts = counts_.data();
-  int* touched = touched_.data();
-  uint32_t* stamp = stamp_.data();
-  const uint32_t epoch = epoch_;
-  int n_touched = n_touched_;
+  Tally t(*this);
   for (int k = 0; k < n; ++k)
   {
-    const int b = values[k];
-    ++counts[b * kBanks + (k & 3)];
-    if (stamp[b] != epoch)
-    {
-      stamp[b] = epoch;
-      touched[n_touched++] = b;
-    }
+    t.count(values[k], k & 3);
+    t.mark(values[k]);
   }
-  n_touched_ = n_touched;
-  n_ += std::max(n, 0);
+  t.store(*this, std::max(n, 0));
 }
 
 double SparseHistogram::scoreAndClear(const TargetHistogram& target)

@@ -107,6 +107,7 @@ public:
 
 private:
   static constexpr int kBanks = 4;
+  struct Tally;  // addGrid() and addValues()' counting state, in locals
 
   std::vector<int> counts_;       // kBanks counters per bin, [kBanks * b + bank]; all zero between candidates
   // stamp_[b] == epoch_: bin b is listed in touched_ for this candidate. Only written on a first touch, so
