@@ -261,6 +261,18 @@ StereoFrame renderFrame(SceneRenderer& renderer, int k, cv::Mat& left, cv::Mat& 
   f.stamp = renderer.stamp(k);
   return f;
 }
+
+// An engine with the target cues of the default configuration (colour, template, outline; no stereo match) on
+// `state` (Position3D when none is given).
+stereo_pf::FilterEngine defaultEngine(std::shared_ptr<stereo_pf::StateModel> state = nullptr,
+                                      const stereo_pf::EngineConfig& config = stereo_pf::EngineConfig())
+{
+  using namespace stereo_pf;
+  return FilterEngine(state ? state : plugin<Position3D>("state_model"),
+                      { plugin<ColourHSI>("colour"), plugin<TemplateMatch>("template"),
+                        plugin<ColourContour>("colour_contour") },
+                      config);
+}
 }  // namespace
 
 TEST(Tracking, NoDepthBiasFromTheObjectsSize)
@@ -286,10 +298,7 @@ TEST(Tracking, NoDepthBiasFromTheObjectsSize)
     {
       EngineConfig config;
       config.seed = seed;
-      FilterEngine engine(plugin<Position3D>("state_model"),
-                          { plugin<ColourHSI>("colour"), plugin<TemplateMatch>("template"),
-                            plugin<ColourContour>("colour_contour") },
-                          config);
+      FilterEngine engine = defaultEngine(plugin<Position3D>("state_model"), config);
       cv::Mat l, r;
       auto frame = [&](int k) { return renderFrame(renderer, k, l, r); };
       std::string error;
@@ -337,10 +346,7 @@ TEST(Tracking, ABallThrownAtTheCameraIsFollowedByTheLocalSearch)
   auto run = [&](double local_fraction, double& worst) {
     EngineConfig c;
     c.local_fraction = local_fraction;
-    FilterEngine engine(plugin<Velocity3D>("state_model"),
-                        { plugin<ColourHSI>("colour"), plugin<TemplateMatch>("template"),
-                          plugin<ColourContour>("colour_contour") },
-                        c);
+    FilterEngine engine = defaultEngine(plugin<Velocity3D>("state_model"), c);
     cv::Mat l, r;
     auto frame = [&](int k) { return renderFrame(renderer, k, l, r); };
     std::string error;
@@ -469,14 +475,6 @@ TEST(Uncertainty, TheTruthLiesInsideThePublished95PercentEllipsoid)
 namespace
 {
 // The default cues (colour, template, outline) and Position3D, as the tracker loads them.
-stereo_pf::FilterEngine defaultEngine()
-{
-  using namespace stereo_pf;
-  return FilterEngine(plugin<Position3D>("state_model"),
-                      { plugin<ColourHSI>("colour"), plugin<TemplateMatch>("template"),
-                        plugin<ColourContour>("colour_contour") },
-                      EngineConfig());
-}
 }  // namespace
 
 TEST(CueTrust, ACueTheBackgroundMatchesAsWellAsTheObjectIsNotTrusted)
@@ -549,18 +547,39 @@ TEST(CueTrust, InColourEveryDefaultCueIsTrusted)
     EXPECT_GT(t, 0.8);
 }
 
+namespace
+{
+/// A light grey 4 cm ball at (-0.1, 0.05, 1.1) m, and a TemplateMatch that learned it from its box in the left
+/// image (through `cache`, reset to that frame).
+struct LearnedGreyBall
+{
+  LearnedGreyBall()
+  {
+    f = render(scene({ ball(0.04, truth, cv::Vec3d(200, 200, 200)) }, 2.2, true), l, r, box);
+    cache.reset(f);
+    learned = m->learnTarget(cache, stereo_pf::View::Left, box, error);
+  }
+  const Eigen::Vector3d truth{ -0.1, 0.05, 1.1 };
+  cv::Mat l, r;
+  cv::Rect box;
+  stereo_pf::StereoFrame f;
+  stereo_pf::FeatureCache cache;
+  std::shared_ptr<stereo_pf::TemplateMatch> m = plugin<stereo_pf::TemplateMatch>("template");
+  std::string error;
+  bool learned = false;
+};
+}  // namespace
+
 TEST(TemplateMatch, PeaksAtTheObjectInBothViewsAndSurvivesSaveAndLoad)
 {
   using namespace stereo_pf;
-  const Eigen::Vector3d truth(-0.1, 0.05, 1.1);
-  cv::Mat l, r;
-  cv::Rect box;
-  const StereoFrame f = render(scene({ ball(0.04, truth, cv::Vec3d(200, 200, 200)) }, 2.2, true), l, r, box);
-  FeatureCache cache;
-  cache.reset(f);
-  auto m = plugin<TemplateMatch>("template");
-  std::string error;
-  ASSERT_TRUE(m->learnTarget(cache, View::Left, box, error)) << error;
+  LearnedGreyBall g;
+  ASSERT_TRUE(g.learned) << g.error;
+  const Eigen::Vector3d& truth = g.truth;
+  const StereoFrame& f = g.f;
+  FeatureCache& cache = g.cache;
+  auto& m = g.m;
+  std::string& error = g.error;
   const float radius = static_cast<float>(f.geometry.apparentRadius(0.04, truth.z()));
   // At the object in each view, and 1, 2 and 3 radii beside it on the same row.
   auto score = [&](const TemplateMatch& model, View view, Eigen::VectorXd& ll) {
@@ -610,15 +629,12 @@ TEST(TemplateMatch, ConvertsOnlyTheRowsItsWindowsReadAndScoresAsOnTheWholeImage)
   // whole grey image, also for windows reaching over the image's edges (sample() clamps them to the edge rows).
   // The band's cache first holds a black frame's grey rows, so a row it left out would read 0.
   using namespace stereo_pf;
-  const Eigen::Vector3d truth(-0.1, 0.05, 1.1);
-  cv::Mat l, r;
-  cv::Rect box;
-  const StereoFrame f = render(scene({ ball(0.04, truth, cv::Vec3d(200, 200, 200)) }, 2.2, true), l, r, box);
-  FeatureCache whole;
-  whole.reset(f);
-  auto m = plugin<TemplateMatch>("template");
-  std::string error;
-  ASSERT_TRUE(m->learnTarget(whole, View::Left, box, error)) << error;
+  LearnedGreyBall g;
+  ASSERT_TRUE(g.learned) << g.error;
+  const Eigen::Vector3d& truth = g.truth;
+  const StereoFrame& f = g.f;
+  FeatureCache& whole = g.cache;
+  auto& m = g.m;
   whole.gray(View::Left);
   StereoFrame black = f;
   black.left = cv::Mat(f.left.size(), f.left.type(), cv::Scalar::all(0));  // new buffers, not f's
