@@ -459,16 +459,17 @@ Coverage ellipsoidCoverage()
 TEST(Uncertainty, TheTruthLiesInsideThePublished95PercentEllipsoid)
 {
   // The acceptance, on a corpus small enough for a unit test: in at least 85 % of tracked frames. The
-  // refining cues' untempered likelihoods leave a cloud far narrower than the error (the ellipsoid published
-  // before); the published one adds the region the other cues allow, and is still informative (its largest
-  // standard deviation a few per cent of the range at most).
+  // refining cues' untempered likelihoods leave a cloud narrower than the error (the ellipsoid published before:
+  // 85-87 % here, far less on the stress suite); the published one adds the region the other cues allow, holds
+  // the truth clearly more often, and is still informative (its largest standard deviation a few per cent of the
+  // range at most).
   const Coverage c = ellipsoidCoverage();
   std::cout << "[ figures  ] inside the published 95 % ellipsoid: " << 100.0 * c.published << " % of " << c.frames
             << " tracking frames (the refined cloud's own: " << 100.0 * c.refined
             << " %); median largest sigma / range " << 100.0 * c.median_sigma << " %\n";
   EXPECT_GE(c.frames, 4 * 30) << "the corpus is tracked";
   EXPECT_GE(c.published, 0.85);
-  EXPECT_LT(c.refined, 0.85);
+  EXPECT_GT(c.published, c.refined + 0.1);
   EXPECT_LT(c.median_sigma, 0.03);
 }
 

@@ -348,6 +348,41 @@ TEST(Binner, LookupIsTheDirectConversionOfTheCellCentre)
   EXPECT_GT(agree, n * 9 / 10);
 }
 
+TEST(Binner, AGainTakesABrighterImageBackToItsBins)
+{
+  // The same scene 30 % brighter (a camera's gain), binned at gain 1 / 1.3: the bins of the scene as it was, but
+  // for the cells the two scalings round differently; binned as it is, most colours are elsewhere. Gain 1 is the
+  // plain table.
+  HsiBinner binner;
+  cv::Mat img(40, 60, CV_8UC3);
+  cv::RNG rng(3);
+  rng.fill(img, cv::RNG::UNIFORM, 0, 190);  // 1.3 x 190 < 255: nothing clips
+  cv::Mat brighter;
+  img.convertTo(brighter, -1, 1.3);
+  cv::Mat as_was, restored, raw, plain, unit;
+  binner.binImage(img, as_was);
+  binner.binImage(brighter, restored, 1.0 / 1.3);
+  binner.binImage(brighter, raw);
+  binner.binImage(brighter, plain);
+  binner.binImage(brighter, unit, 1.0);
+  const double n = static_cast<double>(img.total());
+  EXPECT_GT(cv::countNonZero(restored == as_was) / n, 0.85);
+  EXPECT_LT(cv::countNonZero(raw == as_was) / n, 0.6);
+  std::printf("bins kept: %.2f restored, %.2f as they are\n", cv::countNonZero(restored == as_was) / n,
+              cv::countNonZero(raw == as_was) / n);
+  EXPECT_EQ(cv::countNonZero(unit != plain), 0);
+  // Grey images alike.
+  cv::Mat grey(8, 200, CV_8UC1), grey_bright, grey_as_was, grey_restored, grey_raw;
+  for (int x = 0; x < grey.cols; ++x)
+    grey.col(x).setTo(x * 190 / grey.cols);
+  grey.convertTo(grey_bright, -1, 1.3);
+  binner.binImage(grey, grey_as_was);
+  binner.binImage(grey_bright, grey_restored, 1.0 / 1.3);
+  binner.binImage(grey_bright, grey_raw);
+  EXPECT_GT(cv::countNonZero(grey_restored == grey_as_was) / static_cast<double>(grey.total()), 0.95);
+  EXPECT_LT(cv::countNonZero(grey_raw == grey_as_was) / static_cast<double>(grey.total()), 0.8);
+}
+
 TEST(Binner, GreyImagesAreBinnedAsGrey)
 {
   HsiBinning b;

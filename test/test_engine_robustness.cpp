@@ -64,6 +64,7 @@ class Scene
 {
 public:
   explicit Scene(const std::string& name) : renderer_(loadScene(std::string(SCENES_DIR) + "/" + name)) {}
+  explicit Scene(const SceneDescription& description) : renderer_(description) {}
   StereoFrame frame(int k)
   {
     renderer_.render(k, left_, right_);
@@ -360,6 +361,94 @@ public:
   }
 };
 }  // namespace
+
+namespace
+{
+/// Mean evidence over frames 5..19 of a grey pendulum tracked with its images times these gains from frame 1 on
+/// (the target learned at gain 1 from frame 0).
+double evidenceUnderGains(bool compensate, double left_gain, double right_gain)
+{
+  // The pendulum with a grey ball before a darker grey backdrop: only intensity tells them apart.
+  SceneDescription grey = loadScene(std::string(SCENES_DIR) + "/pendulum_uncluttered.yaml");
+  grey.objects[0].colour = cv::Vec3d(190, 190, 190);
+  grey.background.colour = cv::Vec3d(90, 90, 90);
+  Scene scene(grey);
+  EngineConfig config;
+  config.gain_compensation = compensate;
+  FilterEngine engine(position3D(), defaultCues(), config);
+  std::string error;
+  EXPECT_TRUE(engine.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
+  double sum = 0.0;
+  int n = 0;
+  for (int k = 1; k < 20; ++k)
+  {
+    StereoFrame f = scene.frame(k);
+    cv::Mat left, right;
+    f.left.convertTo(left, -1, left_gain);
+    f.right.convertTo(right, -1, right_gain);
+    f.left = left;
+    f.right = right;
+    const FrameResult r = engine.step(f);
+    if (k >= 5)
+    {
+      sum += r.evidence;
+      ++n;
+    }
+  }
+  return sum / n;
+}
+}  // namespace
+
+TEST(EngineGain, ACameraGainChangeIsTakenOutOfTheColourCues)
+{
+  // After the target is learned the left camera's gain falls by 40 % and the right one's by 25 % (auto gain, or
+  // two cameras that differ). Each view's pixels are scaled back by its brightness against the learning frame's,
+  // so the ball scores as it does at the learning gain; without that its colours move into other intensity bins
+  // and its evidence drops. (Lower gains: what a higher one clips, no gain brings back.)
+  const double as_learned = evidenceUnderGains(true, 1.0, 1.0);
+  const double compensated = evidenceUnderGains(true, 0.6, 0.75);
+  const double raw = evidenceUnderGains(false, 0.6, 0.75);
+  EXPECT_GT(compensated, as_learned - 0.05) << "raw " << raw;
+  std::printf("evidence: %.3f as learned, %.3f compensated, %.3f as they are\n", as_learned, compensated, raw);
+  EXPECT_LT(raw, compensated - 0.1) << "as learned " << as_learned;
+}
+
+TEST(EngineGain, TheLearningBrightnessTravelsWithTheTargetFile)
+{
+  // A target loaded from a file is compared at the brightness it was learned at, not at the first frame's after
+  // loading: learned at gain 1, loaded and tracked at gain 0.75, each view is brought back by 1 / 0.75.
+  Scene scene("pendulum_uncluttered.yaml");
+  const std::string path = "/tmp/stereo_pf_test_gain_" + std::to_string(getpid()) + ".yml";
+  std::string error;
+  {
+    FilterEngine learner(position3D(), defaultCues(), EngineConfig());
+    ASSERT_TRUE(learner.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
+    ASSERT_TRUE(learner.saveTarget(path, error)) << error;
+  }
+  cv::FileStorage fs(path, cv::FileStorage::READ);
+  ASSERT_TRUE(fs["photometry"]["brightness"].isReal());
+  const double stored = static_cast<double>(fs["photometry"]["brightness"]);
+  fs.release();
+  FeatureCache cache;
+  cache.reset(scene.frame(0));
+  EXPECT_DOUBLE_EQ(stored, cache.brightness(View::Left));
+
+  FilterEngine engine(position3D(), defaultCues(), searchOnly());
+  ASSERT_TRUE(engine.loadTarget(path, error)) << error;
+  std::remove(path.c_str());
+  StereoFrame f = scene.frame(0);
+  cv::Mat left, right;
+  f.left.convertTo(left, -1, 0.75);
+  f.right.convertTo(right, -1, 0.75);
+  f.left = left;
+  f.right = right;
+  engine.step(f);
+  // The gains the step used: the file's brightness over this frame's.
+  FeatureCache scaled;
+  scaled.reset(f);
+  EXPECT_NEAR(engine.featureCache().gain(View::Left), stored / scaled.brightness(View::Left), 1e-12);
+  EXPECT_NEAR(engine.featureCache().gain(View::Left), 1.0 / 0.75, 0.03);
+}
 
 TEST(EngineTransactions, AFailedLearnKeepsEveryCuesTarget)
 {

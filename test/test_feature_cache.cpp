@@ -3,6 +3,8 @@
 // The per-frame feature cache computes each product once per image per frame.
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include <opencv2/imgproc.hpp>
 
 #include "stereo_pf/core/feature_cache.h"
@@ -105,4 +107,42 @@ TEST(FeatureCache, RowProductsComputeOnlyTheMissingRows)
   const cv::Mat band = cache.gray(View::Left, 8, 22).rowRange(8, 22).clone();
   cv::cvtColor(cache.image(View::Left), full, cv::COLOR_BGR2GRAY);
   EXPECT_EQ(cv::norm(band, full.rowRange(8, 22), cv::NORM_INF), 0.0);
+}
+
+TEST(FeatureCache, BrightnessIsTheMeanGreyLevelAndAGainMakesTheProductsStale)
+{
+  cv::Mat left(48, 64, CV_8UC3, cv::Scalar(10, 20, 30)), right(48, 64, CV_8UC1, cv::Scalar(200));
+  StereoFrame f;
+  f.left = left;
+  f.right = right;
+  FeatureCache cache;
+  cache.reset(f);
+  EXPECT_DOUBLE_EQ(cache.brightness(View::Left), 20.0) << "all channels alike";
+  EXPECT_DOUBLE_EQ(cache.brightness(View::Right), 200.0);
+  // The grid's pixels only, whatever the resolution: a quarter of the image brighter moves the mean by about a
+  // quarter of the difference.
+  right(cv::Rect(0, 0, 32, 24)).setTo(cv::Scalar(100));
+  EXPECT_NEAR(cache.brightness(View::Right), 175.0, 1e-9);
+  cv::Mat wide(48, 64, CV_16UC1, cv::Scalar(1000));
+  f.right = wide;
+  cache.reset(f);
+  EXPECT_TRUE(std::isnan(cache.brightness(View::Right))) << "not 8-bit";
+
+  f.right = right;
+  cache.reset(f);
+  EXPECT_EQ(cache.gain(View::Left), 1.0);
+  long computed = 0;
+  auto count = [&computed](const cv::Mat& image, cv::Mat& out) {
+    ++computed;
+    out = image.clone();
+  };
+  cache.get(View::Left, "copy", count);
+  cache.get(View::Left, "copy", count);
+  EXPECT_EQ(computed, 1);
+  cache.setGain(View::Left, 1.25);
+  EXPECT_EQ(cache.gain(View::Left), 1.25);
+  cache.get(View::Left, "copy", count);
+  EXPECT_EQ(computed, 2) << "a product computed before the gain was set is stale";
+  cache.reset(f);
+  EXPECT_EQ(cache.gain(View::Left), 1.0) << "each frame starts at gain 1";
 }

@@ -3,6 +3,7 @@
 #include "stereo_pf/core/colour.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -182,16 +183,37 @@ HsiBinner::HsiBinner(const HsiBinning& binning)
 
 const cv::Mat& HsiBinner::cachedBins(FeatureCache& cache, View view, int y0, int y1) const
 {
-  return cache.getRows(view, cache_key_, y0, y1, [this](const cv::Mat& image, cv::Mat& out, int a, int b) {
+  const double gain = cache.gain(view);
+  return cache.getRows(view, cache_key_, y0, y1, [this, gain](const cv::Mat& image, cv::Mat& out, int a, int b) {
     out.create(image.size(), CV_8UC1);
     if (a >= b)
       return;
     cv::Mat rows = out.rowRange(a, b);  // the right size and type: binImage() fills it in place
-    binImage(image.rowRange(a, b), rows);
+    binImage(image.rowRange(a, b), rows, gain);
   });
 }
 
-void HsiBinner::binImage(const cv::Mat& image, cv::Mat& bins) const
+const uint8_t* HsiBinner::gainTable(int step) const
+{
+  auto found = gain_luts_.find(step);
+  if (found != gain_luts_.end())
+    return found->second.data();
+  if (gain_luts_.size() >= kMaxGainTables)
+    gain_luts_.clear();
+  // The table at gain 1 read at each cell's scaled value: one pass of 2^18 reads, once per gain step,
+  // then every pixel costs what it does at gain 1.
+  std::array<uint32_t, 64> cell;
+  for (int q = 0; q < 64; ++q)
+    cell[q] = static_cast<uint32_t>(
+        std::min(63.0, std::floor((q * 4.0 + 1.5) * static_cast<double>(step) / kGainSteps / 4.0)));
+  std::vector<uint8_t>& table = gain_luts_[step];
+  table.resize(lut_.size());
+  for (uint32_t i = 0; i < table.size(); ++i)
+    table[i] = lut_[(cell[i >> 12] << 12) | (cell[(i >> 6) & 63u] << 6) | cell[i & 63u]];
+  return table.data();
+}
+
+void HsiBinner::binImage(const cv::Mat& image, cv::Mat& bins, double gain) const
 {
   const int type = image.type();
   if (type != CV_8UC3 && type != CV_8UC1 && type != CV_8UC4)
@@ -208,6 +230,17 @@ void HsiBinner::binImage(const cv::Mat& image, cv::Mat& bins) const
   }
   const uint8_t* lut = lut_.data();
   const int channels = image.channels();
+  const uint8_t* glut = gray_lut_.data();
+  std::array<uint8_t, 256> scaled_gray;
+  const int step = std::isfinite(gain) ? static_cast<int>(std::lround(std::clamp(gain, 0.25, 4.0) * kGainSteps))
+                                       : kGainSteps;
+  if (step != kGainSteps)
+  {
+    lut = gainTable(step);
+    for (int v = 0; v < 256; ++v)
+      scaled_gray[v] = gray_lut_[std::min(255L, std::lround(v * static_cast<double>(step) / kGainSteps))];
+    glut = scaled_gray.data();
+  }
   for (int y = 0; y < rows; ++y)
   {
     const uint8_t* p = image.ptr<uint8_t>(y);
@@ -215,7 +248,6 @@ void HsiBinner::binImage(const cv::Mat& image, cv::Mat& bins) const
     int x = 0;
     if (channels == 1)
     {
-      const uint8_t* glut = gray_lut_.data();
       for (; x < cols; ++x)
         o[x] = glut[p[x]];
       continue;

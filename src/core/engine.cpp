@@ -20,6 +20,7 @@ namespace
 /// The target file's entry for the size learned with the target.
 const char* const kTargetSizeNode = "target_size";
 const char* const kCueTrustNode = "cue_trust";
+const char* const kPhotometryNode = "photometry";
 }  // namespace
 
 std::string toString(TrackState state)
@@ -202,6 +203,9 @@ const std::vector<EngineField>& engineFields()
     boolField<&C::cue_trust>("cue_trust", true,
                              "acquisition weighs each cue by how well it told the object from the rest of that frame "
                              "(a cue the background matches as well as the object gets no weight); false: all equal"),
+    boolField<&C::gain_compensation>("gain_compensation", true,
+                                     "the colour cues see each view's pixels times the gain that brings its mean grey "
+                                     "level to the learning frame's (0.5..2); false: as they are"),
   };
   return fields;
 }
@@ -314,6 +318,9 @@ bool FilterEngine::learnTarget(const StereoFrame& frame, const cv::Rect& roi, st
     }
   }
   cache_.reset(frame);
+  const double brightness_before = target_brightness_;
+  target_brightness_ = cache_.brightness(View::Left);
+  compensateGain();
   // All or nothing: a model that cannot learn the region must not leave the others with a new target.
   const std::string before = snapshotTargets();
   for (auto& m : observation_models_)
@@ -323,6 +330,7 @@ bool FilterEngine::learnTarget(const StereoFrame& frame, const cv::Rect& roi, st
     {
       error = "observation model '" + m->name() + "': " + e;
       restoreTargets(before);
+      target_brightness_ = brightness_before;
       return false;
     }
   }
@@ -367,6 +375,18 @@ void FilterEngine::adaptTargets()
         if (m->enabled())
           m->adapt(cache_, one);
     }
+  }
+}
+
+void FilterEngine::compensateGain()
+{
+  if (!(target_brightness_ > 0.0))
+    target_brightness_ = cache_.brightness(View::Left);
+  for (View view : { View::Left, View::Right })
+  {
+    const double brightness = cache_.brightness(view);
+    const bool measurable = config_.gain_compensation && target_brightness_ > 0.0 && brightness > 0.0;
+    cache_.setGain(view, measurable ? std::clamp(target_brightness_ / brightness, 0.5, 2.0) : 1.0);
   }
 }
 
@@ -431,6 +451,8 @@ bool FilterEngine::saveTarget(const std::string& path, std::string& error) const
         m->saveTarget(fs);
     if (target_radius_ > 0.0)
       fs << kTargetSizeNode << "{" << "radius" << target_radius_ << "}";
+    if (target_brightness_ > 0.0)
+      fs << kPhotometryNode << "{" << "brightness" << target_brightness_ << "}";
     fs << kCueTrustNode << "{";
     for (size_t k = 0; k < observation_models_.size(); ++k)
       fs << observation_models_[k]->name() << cue_trust_[k];
@@ -457,7 +479,7 @@ bool FilterEngine::loadTarget(const std::string& path, std::string& error)
     // Every model must find its entry before any target changes (a file saved with other cues).
     std::vector<std::string> present, missing;
     for (const auto& node : fs.root())
-      if (node.name() != kTargetSizeNode && node.name() != kCueTrustNode)
+      if (node.name() != kTargetSizeNode && node.name() != kCueTrustNode && node.name() != kPhotometryNode)
         present.push_back(node.name());
     for (const auto& m : observation_models_)
       if (m->learnsTarget() && fs[m->name()].empty())
@@ -502,6 +524,11 @@ bool FilterEngine::loadTarget(const std::string& path, std::string& error)
       const double value = !t.empty() && t.isReal() ? static_cast<double>(t) : 1.0;
       cue_trust_[k] = std::isfinite(value) ? std::clamp(value, 0.0, 1.0) : 1.0;
     }
+    // The brightness it was learned at (files without it: the first frame tracked sets it).
+    const cv::FileNode photometry = fs[kPhotometryNode];
+    const double brightness =
+        !photometry.empty() && photometry["brightness"].isReal() ? static_cast<double>(photometry["brightness"]) : -1.0;
+    target_brightness_ = std::isfinite(brightness) && brightness > 0.0 ? brightness : -1.0;
     track_reference_ = hold_reference_ = -1.0;
     return true;
   }
@@ -987,6 +1014,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
 
   const StereoGeometry& geometry = frame.geometry;
   cache_.reset(frame);
+  compensateGain();
   double max_depth = config_.max_depth;
   if (target_radius_ > 0.0 && config_.min_apparent_radius > 0.0)
   {

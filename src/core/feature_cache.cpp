@@ -3,6 +3,8 @@
 #include "stereo_pf/core/feature_cache.h"
 
 #include <algorithm>
+#include <cstdint>
+#include <limits>
 
 #include <opencv2/imgproc.hpp>
 
@@ -12,6 +14,37 @@ void FeatureCache::reset(const StereoFrame& frame)
 {
   frame_ = frame;  // cv::Mat headers only: no pixel copy
   ++frame_id_;
+  gain_[0] = gain_[1] = 1.0;
+}
+
+void FeatureCache::setGain(View view, double gain)
+{
+  gain_[static_cast<int>(view)] = gain;
+  ++frame_id_;
+}
+
+double FeatureCache::brightness(View view) const
+{
+  const cv::Mat& image = frame_.image(view);
+  if (image.depth() != CV_8U || image.empty())
+    return std::numeric_limits<double>::quiet_NaN();
+  // A fixed grid of kGrid x kGrid pixels, whatever the resolution: each sample is a memory read of its own, and a
+  // frame's images are not in the cache yet (every 8th pixel of every 8th row took 50 us a frame at 640x480, this
+  // grid 7 us for both views).
+  constexpr int kGrid = 16;
+  const int channels = image.channels();
+  long sum = 0;
+  for (int gy = 0; gy < kGrid; ++gy)
+  {
+    const uint8_t* row = image.ptr<uint8_t>((2 * gy + 1) * image.rows / (2 * kGrid));
+    for (int gx = 0; gx < kGrid; ++gx)
+    {
+      const uint8_t* px = row + static_cast<long>((2 * gx + 1) * image.cols / (2 * kGrid)) * channels;
+      for (int c = 0; c < channels; ++c)
+        sum += px[c];
+    }
+  }
+  return static_cast<double>(sum) / (static_cast<double>(kGrid) * kGrid * channels);
 }
 
 const cv::Mat& FeatureCache::get(View view, const std::string& key, const Compute& compute)

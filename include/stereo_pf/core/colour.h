@@ -5,6 +5,7 @@
 
 #include <array>
 #include <cstdint>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -95,18 +96,27 @@ public:
   uint8_t binGray(uint8_t v) const { return gray_lut_[v]; }
   /// Fill `bins` (CV_8UC1, same size; its buffer is reused when it already fits) with the bin index of
   /// every pixel of a CV_8UC3 BGR, CV_8UC4 BGRA or CV_8UC1 grey image. Throws std::invalid_argument for
-  /// other types.
-  void binImage(const cv::Mat& image, cv::Mat& bins) const;
+  /// other types. With `gain` != 1 (applied in steps of 1/64) each channel value v is first scaled by it (and
+  /// clipped at 255).
+  void binImage(const cv::Mat& image, cv::Mat& bins, double gain = 1.0) const;
 
   /// The bin-index image of `view` of the cache's frame, through the cache under the key
-  /// "hsi_bins/<binning>" (so every model with the same binning shares it); only rows [y0, y1) are
-  /// guaranteed (FeatureCache::getRows()).
+  /// "hsi_bins/<binning>" (so every model with the same binning shares it), at the cache's gain for that view
+  /// (FeatureCache::gain()); only rows [y0, y1) are guaranteed (FeatureCache::getRows()).
   const cv::Mat& cachedBins(FeatureCache& cache, View view, int y0, int y1) const;
 
 private:
+  /// Gains are applied in steps of 1/kGainSteps.
+  static constexpr int kGainSteps = 64;
+  /// Tables kept for gains other than 1 (256 KB each); more distinct gains start the collection afresh.
+  static constexpr size_t kMaxGainTables = 16;
+  /// The table for gain step / kGainSteps: built on first use from the table at gain 1, then kept.
+  const uint8_t* gainTable(int step) const;
+
   HsiBinning binning_;
   std::string cache_key_;
   std::vector<uint8_t> lut_;
+  mutable std::map<int, std::vector<uint8_t>> gain_luts_;
   std::array<uint8_t, 256> gray_lut_{};
 };
 

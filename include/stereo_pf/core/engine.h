@@ -145,6 +145,11 @@ struct EngineConfig
   /// Acquisition also measures each cue's trust (measureCueTrust): how well it told the object from the rest of
   /// that frame; a cue's weight and its share of the evidence are scaled by it. False: every cue trusted.
   bool cue_trust = true;
+  /// The colour cues see each frame's pixels times the gain that brings that view's brightness (mean grey level)
+  /// back to the learning frame's left image (FeatureCache::setGain(), clamped to 0.5..2): a camera's auto gain or
+  /// exposure, or a right camera brighter than the left, then moves no colour between intensity bins. False:
+  /// the pixels as they are.
+  bool gain_compensation = true;
 
   /// Read from `params` (missing keys keep their defaults); throws ParameterError.
   static EngineConfig fromParameters(const Parameters& params);
@@ -238,6 +243,12 @@ public:
   /// frame it was learned on (measureCueTrust); its weight and its share of the evidence are scaled by it. All 1
   /// before a target, for a target learned without acquisition, or loaded from a file that has none.
   const std::vector<double>& cueTrust() const { return cue_trust_; }
+  /// The brightness (FeatureCache::brightness()) of the left image the target was learned from, which each frame's
+  /// gains bring the views back to (EngineConfig::gain_compensation); -1 before a target, or for one loaded from a
+  /// file that has none until the first step.
+  double targetBrightness() const { return target_brightness_; }
+  /// The cache of the last step's frame (its gains: FeatureCache::gain()).
+  const FeatureCache& featureCache() const { return cache_; }
 
 private:
   void applyPending();
@@ -264,6 +275,9 @@ private:
   void seedAroundAcquisition(const StereoGeometry& geometry);
   /// After a frame in which the tracked object was seen: every model's adapt() at the best particle's views.
   void adaptTargets();
+  /// The cache's gain for each view this frame (EngineConfig::gain_compensation); the brightness the target
+  /// was learned at is taken from this frame when there is none yet (a target file without it).
+  void compensateGain();
   /// Classify the frame's evidence (Support) against the thresholds and the background.
   Support judge(double evidence, double background, bool background_measured) const;
   /// Track state machine; a loss to the background or the volume re-initialises the sets.
@@ -356,6 +370,8 @@ private:
   BoxMatch acquisition_;
   std::vector<double> cue_trust_;  ///< per observation model, see cueTrust()
   double target_radius_ = 0.0;
+  /// Brightness (FeatureCache::brightness()) of the left image the target was learned from (-1: unknown).
+  double target_brightness_ = -1.0;
 
   // detection-driven proposals of this frame: (left pixel, right pixel) pairs
   std::vector<std::pair<Pixel, Pixel>> proposals_;

@@ -54,6 +54,17 @@ public:
   const cv::Mat& gradientX(View view);
   const cv::Mat& gradientY(View view);
 
+  /// Photometric gain of a view this frame: what the colour products (HsiBinner::cachedBins()) multiply the
+  /// pixel values by before binning them, so that a camera's gain or exposure changing since the target was
+  /// learned, or a right camera brighter than the left, does not move a surface's colour into another
+  /// intensity bin. Set by the engine right after reset() (1 until then); setting it makes every product of
+  /// this frame stale.
+  void setGain(View view, double gain);
+  double gain(View view) const { return gain_[static_cast<int>(view)]; }
+  /// Mean grey level (0..255) of a view's image over a 16 x 16 grid of pixels spread evenly over it, all channels
+  /// alike (NaN for an empty image or one that is not 8-bit): the brightness the gains are measured from.
+  double brightness(View view) const;
+
   /// How many products have been computed since construction (for tests: proves sharing).
   long computeCount() const { return compute_count_; }
 
@@ -68,6 +79,7 @@ private:
   StereoFrame frame_;
   long frame_id_ = 0;
   long compute_count_ = 0;
+  double gain_[2] = { 1.0, 1.0 };
   std::map<std::string, Entry> entries_;
 };
 
