@@ -436,6 +436,7 @@ TEST(EngineGain, TheLearningBrightnessTravelsWithTheTargetFile)
   FilterEngine engine(position3D(), defaultCues(), searchOnly());
   ASSERT_TRUE(engine.loadTarget(path, error)) << error;
   std::remove(path.c_str());
+  EXPECT_DOUBLE_EQ(engine.targetBrightness(), stored);
   StereoFrame f = scene.frame(0);
   cv::Mat left, right;
   f.left.convertTo(left, -1, 0.75);
