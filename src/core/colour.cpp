@@ -234,13 +234,14 @@ void HsiBinner::binImage(const cv::Mat& image, cv::Mat& bins, double gain) const
   std::array<uint8_t, 256> scaled_gray;
   const int step = std::isfinite(gain) ? static_cast<int>(std::lround(std::clamp(gain, 0.25, 4.0) * kGainSteps))
                                        : kGainSteps;
-  if (step != kGainSteps)
+  if (step != kGainSteps && channels == 1)
   {
-    lut = gainTable(step);
     for (int v = 0; v < 256; ++v)
       scaled_gray[v] = gray_lut_[std::min(255L, std::lround(v * static_cast<double>(step) / kGainSteps))];
     glut = scaled_gray.data();
   }
+  else if (step != kGainSteps)
+    lut = gainTable(step);
   for (int y = 0; y < rows; ++y)
   {
     const uint8_t* p = image.ptr<uint8_t>(y);

@@ -380,12 +380,14 @@ void FilterEngine::adaptTargets()
 
 void FilterEngine::compensateGain()
 {
+  if (!config_.gain_compensation)
+    return;  // the cache's gains stay at reset()'s 1
   if (!(target_brightness_ > 0.0))
     target_brightness_ = cache_.brightness(View::Left);
   for (View view : { View::Left, View::Right })
   {
     const double brightness = cache_.brightness(view);
-    const bool measurable = config_.gain_compensation && target_brightness_ > 0.0 && brightness > 0.0;
+    const bool measurable = target_brightness_ > 0.0 && brightness > 0.0;
     cache_.setGain(view, measurable ? std::clamp(target_brightness_ / brightness, 0.5, 2.0) : 1.0);
   }
 }
