@@ -629,19 +629,24 @@ class Scripted : public ColourHSI
 {
 public:
   std::vector<double> script;
+  /// When set: the right view's similarity instead of script's (script is then the left view's).
+  std::vector<double> right_script;
   int frame = 0;
   int particles = 0;
   void evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
                 Eigen::Ref<Eigen::VectorXd> similarity) override
   {
     ColourHSI::evaluate(cache, hyp, log_likelihood, similarity);
-    if (frame >= 0 && frame < static_cast<int>(script.size()))
-      similarity.setConstant(hyp.size() == particles ? script[frame] : 0.0);
+    const std::vector<double>& s = hyp.view == View::Right && !right_script.empty() ? right_script : script;
+    if (frame >= 0 && frame < static_cast<int>(s.size()))
+      similarity.setConstant(hyp.size() == particles ? s[frame] : 0.0);
   }
 };
 
-/// Every frame's result on the pendulum whose evidence follows `script` from frame 10 on.
-std::vector<FrameResult> resultsUnder(const std::vector<double>& script, EngineConfig config = EngineConfig())
+/// Every frame's result on the pendulum whose evidence follows `script` from frame 10 on (in the left view only
+/// when `right_script` is given: the right view's follows that).
+std::vector<FrameResult> resultsUnder(const std::vector<double>& script, EngineConfig config = EngineConfig(),
+                                      const std::vector<double>& right_script = {})
 {
   Scene scene("pendulum_uncluttered.yaml");
   auto colour = cue<Scripted>("colour");
@@ -655,6 +660,7 @@ std::vector<FrameResult> resultsUnder(const std::vector<double>& script, EngineC
   {
     colour->frame = k - 10;
     colour->script = k >= 10 ? script : std::vector<double>{};
+    colour->right_script = k >= 10 ? right_script : std::vector<double>{};
     results.push_back(engine.step(scene.frame(k)));
   }
   return results;
@@ -688,6 +694,33 @@ TEST(EngineTrackState, UnsureFramesNeitherCountNorBreakARunOfUnseenOnes)
   const std::vector<TrackState> interrupted = statesUnder({ 0.3, 0.55, 0.3, 0.9, 0.3, 0.55 });
   for (size_t k = 9; k < interrupted.size(); ++k)
     EXPECT_EQ(interrupted[k], TrackState::Tracking) << "frame " << k;
+}
+
+TEST(EngineTrackState, AnObjectOneCameraStillSeesIsUnsureNotUnseen)
+{
+  // From frame 10 the right view's cues score 0.05 (the object before something that hides it from them, as a
+  // real pitch's ball before a bright panel seen by the right camera only) while the left view's score 0.8: their
+  // mean is below lost_similarity, but the left camera sees the object. Unsure, so the track is kept until
+  // unsure_frames of them; with one_view_unsure off, lost at the third such frame.
+  const EngineConfig defaults;
+  ASSERT_TRUE(defaults.one_view_unsure);
+  ASSERT_LT(0.5 * (0.8 + 0.05), defaults.lost_similarity);
+  ASSERT_GE(0.8, defaults.found_similarity);
+  const std::vector<double> left(12, 0.8), right(12, 0.05);
+  const std::vector<FrameResult> kept = resultsUnder(left, defaults, right);
+  EXPECT_LT(kept[10].evidence, defaults.lost_similarity) << "the reported evidence is still the mean";
+  EXPECT_EQ(kept[10].support, Support::Unsure);
+  EXPECT_EQ(kept[18].state, TrackState::Tracking) << "nine unsure frames";
+  EXPECT_EQ(kept[19].state, TrackState::Lost) << "the tenth unsure frame in a row";
+  EngineConfig off;
+  off.one_view_unsure = false;
+  const std::vector<FrameResult> lost = resultsUnder(left, off, right);
+  EXPECT_EQ(lost[10].support, Support::LowEvidence);
+  EXPECT_EQ(lost[12].state, TrackState::Lost) << "the third low frame";
+  // Neither view seeing it (0.6 and 0.05: each below found_similarity) is unseen, as before.
+  const std::vector<FrameResult> neither = resultsUnder(std::vector<double>(12, 0.6), defaults, right);
+  EXPECT_EQ(neither[10].support, Support::LowEvidence);
+  EXPECT_EQ(neither[12].state, TrackState::Lost) << "the third low frame";
 }
 
 TEST(EngineTrackState, ATrackThatStaysUnsureIsLostAfterUnsureFrames)

@@ -160,6 +160,9 @@ const std::vector<EngineField>& engineFields()
     doubleField<&C::hold_follow>("hold_follow", 0.0, 1.0, true,
                                  "the measure of hold_margin follows the evidence of the track's seen frames by this "
                                  "much per frame, never above the first track's (0: that alone)"),
+    boolField<&C::one_view_unsure>("one_view_unsure", true,
+                                   "a frame below lost_similarity in which one camera alone sees the object (its "
+                                   "view's mean similarity at least found_similarity) is unsure, not unseen"),
     doubleField<&C::respawn_fraction>("respawn_fraction", 0.0, 1.0, true,
                                       "fraction of each set redrawn from the prior every frame while not tracking"),
     doubleField<&C::tracking_respawn_fraction>("tracking_respawn_fraction", 0.0, 1.0, false,
@@ -702,9 +705,9 @@ void FilterEngine::rememberTrack()
   }
 }
 
-Support FilterEngine::judge(double evidence, double contrast, bool background_measured) const
+Support FilterEngine::judge(double evidence, double contrast, bool background_measured, bool one_view) const
 {
-  if (evidence < config_.lost_similarity)
+  if (evidence < config_.lost_similarity && !(one_view && config_.one_view_unsure))
     return Support::LowEvidence;
   // Evidence the background explains as well is no evidence (a target learned from a box of wall).
   if (background_measured && contrast < config_.background_margin)
@@ -905,6 +908,9 @@ double FilterEngine::observe(const StereoGeometry& geometry, int s, Take take)
       {
         sum_sim_ += trust * scratch_sim_;
         cues += trust;
+        const int v = hyp.view == View::Left ? 0 : 1;
+        view_sim_[v] += trust * scratch_sim_;
+        view_cues_[v] += trust;
       }
     }
   }
@@ -1092,6 +1098,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
   double evidence = std::numeric_limits<double>::infinity();
   double contrast = std::numeric_limits<double>::infinity();
   bool background_measured = false;
+  bool one_view_seen = true;  // below lost_similarity, one view alone sees the object (in every set)
   bool escaped = false;  // every particle of a set left the viewing volume
   result.log_marginal = 0.0;
   for (int s = 0; s < static_cast<int>(sets_.size()); ++s)
@@ -1102,6 +1109,11 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     p.log_weights = p.weights.array().log();
     prior_log_ = p.log_weights;
     sum_sim_.setZero(n);
+    for (int v = 0; v < 2; ++v)
+    {
+      view_sim_[v].setZero(n);
+      view_cues_[v] = 0.0;
+    }
     scratch_ll_.resize(n);
     scratch_sim_.resize(n);
     const double cues = observe(geometry, s, [&](const ObservationModel& m) {
@@ -1131,6 +1143,13 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     Eigen::Index best_index = -1;
     const double best = cues > 0.0 ? sum_sim_.maxCoeff(&best_index) / cues : 0.0;
     evidence = std::min(evidence, best);
+    // ... or, below lost_similarity, by one camera alone (one_view_unsure), in every set that has both views.
+    bool one_view = false;
+    if (best < config_.lost_similarity && view_cues_[0] > 0.0 && view_cues_[1] > 0.0)
+      for (int i = 0; i < n && !one_view; ++i)
+        one_view = sum_sim_[i] > 0.0 && std::max(view_sim_[0][i] / view_cues_[0], view_sim_[1][i] / view_cues_[1]) >=
+                                            config_.found_similarity;
+    one_view_seen = one_view_seen && one_view;
     // ... and not by the background alike: the same cues at places beside the best particle.
     double background = 0.0;
     if (cues > 0.0 && backgroundSimilarity(s, static_cast<int>(best_index), is_evidence, background))
@@ -1165,7 +1184,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     if (coarse.valid)
       result.estimate.covariance += coarse.covariance;
   }
-  Support support = judge(result.evidence, contrast, background_measured);
+  Support support = judge(result.evidence, contrast, background_measured, one_view_seen);
   if (escaped || (result.estimate.valid && !volume_.containsDepth(result.estimate.position.z())))
   {
     support = Support::OutsideView;

@@ -42,7 +42,7 @@ enum class Support
                    ///< tracking, also within reacquire_margin of the track's reference evidence, while tracking
                    ///< within hold_margin of it (as it follows the track's seen frames: hold_follow)
   Unsure,          ///< between the thresholds: neither counts towards nor breaks a run of seen or unseen frames
-  LowEvidence,     ///< evidence < lost_similarity
+  LowEvidence,     ///< evidence < lost_similarity (and no view alone sees the object: one_view_unsure)
   LikeBackground,  ///< background locations score as well as the best particle (within background_margin)
   OutsideView      ///< the estimate, or every particle of a set, left the viewing volume: lost at once
 };
@@ -90,6 +90,13 @@ struct EngineConfig
   /// on a patch of the object's colour) is still unsure, since unsure frames do not move it. Back to
   /// track_reference when a track is lost. 0: the first track's evidence alone.
   double hold_follow = 0.05;
+  /// A frame whose evidence is below lost_similarity, but in which one camera alone sees the object (some
+  /// particle's mean similarity over the evidence cues in that view at least found_similarity), is unsure rather
+  /// than unseen: the track is kept (for unsure_frames) while the object is hidden from the other camera's cues.
+  /// On a real pitch the ball passed in front of a bright panel seen by the right camera only: its right-view
+  /// cues fell to 0-0.3 while the left view's stayed at 0.7-0.8, and the track was lost 5 frames before the
+  /// pitch's end. false: the mean over both views alone decides.
+  bool one_view_unsure = true;
   double respawn_fraction = 0.2;      ///< fraction of each set redrawn every frame while not Tracking
   /// While Tracking: the share of each set moved every frame to where the cues' target maps see the target
   /// (the recovery search: a fast object's jump, a bounce, the real object beside a distractor), each with the
@@ -279,7 +286,7 @@ private:
   /// was learned at is taken from this frame when there is none yet (a target file without it).
   void compensateGain();
   /// Classify the frame's evidence (Support) against the thresholds and the background.
-  Support judge(double evidence, double background, bool background_measured) const;
+  Support judge(double evidence, double background, bool background_measured, bool one_view) const;
   /// Track state machine; a loss to the background or the volume re-initialises the sets.
   void updateTrackState(Support support, FrameResult& result);
   /// Give the particles of set `s` whose hypotheses leave the viewing volume zero weight (log-weight -inf);
@@ -349,6 +356,10 @@ private:
   /// Per set: this frame's recovery jumps are its first jump_rows_[s] particles (0: none). The refining stage
   /// keeps their share and the rest's apart (see refineSecondStage()).
   std::vector<int> jump_rows_;
+  /// Per view (left, right): the evidence cues' similarity summed over cues for every particle of the set being
+  /// observed, and their trust summed (EngineConfig::one_view_unsure).
+  Eigen::VectorXd view_sim_[2];
+  double view_cues_[2] = { 0.0, 0.0 };
   TrackState state_ = TrackState::Searching;
   int seen_count_ = 0;
   int unseen_count_ = 0;
