@@ -146,6 +146,9 @@ class Metrics(unittest.TestCase):
         self.assertAlmostEqual(g["rms_cm"], 10.0, places=3)
         self.assertAlmostEqual(g["rms_pct"], 5.0, places=3)
         self.assertAlmostEqual(g["no_estimate_pct"], 10.0)
+        # of the 10 frames with a reference point, the last one (frame 19) has no estimate
+        self.assertEqual(g["referenced_frames"], 10)
+        self.assertEqual(g["reference_missing"], 1)
 
 
 class Draw(unittest.TestCase):
