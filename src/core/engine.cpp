@@ -1098,7 +1098,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
   double evidence = std::numeric_limits<double>::infinity();
   double contrast = std::numeric_limits<double>::infinity();
   bool background_measured = false;
-  bool one_view_seen = true;  // below lost_similarity, one view alone sees the object (in every set)
+  bool one_view_seen = true;  // every set at lost_similarity or above, or seen there by one view alone
   bool escaped = false;  // every particle of a set left the viewing volume
   result.log_marginal = 0.0;
   for (int s = 0; s < static_cast<int>(sets_.size()); ++s)
@@ -1143,9 +1143,10 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     Eigen::Index best_index = -1;
     const double best = cues > 0.0 ? sum_sim_.maxCoeff(&best_index) / cues : 0.0;
     evidence = std::min(evidence, best);
-    // ... or, below lost_similarity, by one camera alone (one_view_unsure), in every set that has both views.
-    bool one_view = false;
-    if (best < config_.lost_similarity && view_cues_[0] > 0.0 && view_cues_[1] > 0.0)
+    // ... or, below lost_similarity, by one camera alone (one_view_unsure; a set seen in one view only has no
+    // other view to stand in for).
+    bool one_view = best >= config_.lost_similarity;
+    if (!one_view && view_cues_[0] > 0.0 && view_cues_[1] > 0.0)
       for (int i = 0; i < n && !one_view; ++i)
         one_view = sum_sim_[i] > 0.0 && std::max(view_sim_[0][i] / view_cues_[0], view_sim_[1][i] / view_cues_[1]) >=
                                             config_.found_similarity;

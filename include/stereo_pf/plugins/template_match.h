@@ -87,9 +87,9 @@ private:
   /// Take `learned` (normalised) as the target learned from a box of `box_radius` px and that aspect; the
   /// adaptation restarts from it.
   void setTarget(const std::vector<float>& learned, double box_radius, double aspect_x, double aspect_y);
-  /// The raw samples of the window at (u, v) with apparent `radius` (<= 0: the box's), in scratch_.
   /// Rows [first, second) of an image `height` rows high that the windows of `hyp`'s valid hypotheses read.
   std::pair<int, int> windowRows(const ImageHypotheses& hyp, int height) const;
+  /// The raw samples of the window at (u, v) with apparent `radius` (<= 0: the box's), in scratch_.
   const std::vector<float>& window(const cv::Mat& gray, double u, double v, double radius);
 
   Tunables tunables_;
