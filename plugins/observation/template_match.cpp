@@ -77,6 +77,33 @@ void TemplateMatch::makeWeights()
       weights_[static_cast<size_t>(y) * size_ + x] = w;
       weight_sum_ += w;
     }
+  active_spans_.assign(size_, { 0, 0 });
+  active_weights_.clear();
+  for (int y = 0; y < size_; ++y)
+  {
+    const float* row = weights_.data() + static_cast<size_t>(y) * size_;
+    int x0 = 0, x1 = size_;
+    while (x0 < x1 && row[x0] == 0.0f)
+      ++x0;
+    while (x1 > x0 && row[x1 - 1] == 0.0f)
+      --x1;
+    active_spans_[y] = { x0, x1 };
+    active_weights_.insert(active_weights_.end(), row + x0, row + x1);
+  }
+  active_scratch_.resize(active_weights_.size());
+  activeWeighted();
+}
+
+void TemplateMatch::activeWeighted()
+{
+  active_weighted_.clear();
+  if (weighted_.size() != weights_.size())
+    return;
+  for (int y = 0; y < size_; ++y)
+  {
+    const float* row = weighted_.data() + static_cast<size_t>(y) * size_;
+    active_weighted_.insert(active_weighted_.end(), row + active_spans_[y].first, row + active_spans_[y].second);
+  }
 }
 
 void TemplateMatch::halfSizes(double radius, double& hx, double& hy) const
@@ -89,6 +116,12 @@ void TemplateMatch::halfSizes(double radius, double& hx, double& hy) const
 void TemplateMatch::sample(const cv::Mat& gray, double u, double v, double hx, double hy, std::vector<float>& out) const
 {
   out.resize(static_cast<size_t>(size_) * size_);
+  sampleSpans(gray, u, v, hx, hy, nullptr, out.data());
+}
+
+void TemplateMatch::sampleSpans(const cv::Mat& gray, double u, double v, double hx, double hy,
+                                const std::pair<int, int>* spans, float* out) const
+{
   const double c = 0.5 * (size_ - 1);
   const double sx = hx / c, sy = hy / c;
   int cols[41];
@@ -96,10 +129,12 @@ void TemplateMatch::sample(const cv::Mat& gray, double u, double v, double hx, d
     cols[x] = std::clamp(cvRound(u + (x - c) * sx), 0, gray.cols - 1);
   for (int y = 0; y < size_; ++y)
   {
+    const int x0 = spans ? spans[y].first : 0, x1 = spans ? spans[y].second : size_;
+    if (x0 >= x1)
+      continue;
     const uint8_t* row = gray.ptr<uint8_t>(std::clamp(cvRound(v + (y - c) * sy), 0, gray.rows - 1));
-    float* o = out.data() + static_cast<size_t>(y) * size_;
-    for (int x = 0; x < size_; ++x)
-      o[x] = row[cols[x]];
+    for (int x = x0; x < x1; ++x)
+      *out++ = row[cols[x]];
   }
 }
 
@@ -125,10 +160,14 @@ bool TemplateMatch::normalise(std::vector<float>& values) const
 
 double TemplateMatch::score(const std::vector<float>& samples) const
 {
+  return correlate(samples.data(), weights_.data(), weighted_.data(), static_cast<Eigen::Index>(samples.size()));
+}
+
+double TemplateMatch::correlate(const float* samples, const float* weights, const float* weighted, Eigen::Index n) const
+{
   // With the template zero-mean under the weights, sum w t (p - mean p) = sum w t p. Two passes in float
   // (vectorised by Eigen; the second about the mean, so no cancellation): this runs for every hypothesis.
-  const Eigen::Index n = static_cast<Eigen::Index>(samples.size());
-  const Eigen::Map<const Eigen::ArrayXf> p(samples.data(), n), w(weights_.data(), n), wt(weighted_.data(), n);
+  const Eigen::Map<const Eigen::ArrayXf> p(samples, n), w(weights, n), wt(weighted, n);
   const float mean = (w * p).sum() / static_cast<float>(weight_sum_);
   const double var = (w * (p - mean).square()).sum();
   if (!(var > 1e-6 * weight_sum_))
@@ -150,6 +189,7 @@ void TemplateMatch::useTemplate()
   weighted_.resize(current_.size());
   for (size_t i = 0; i < current_.size(); ++i)
     weighted_[i] = weights_[i] * current_[i];
+  activeWeighted();
 }
 
 void TemplateMatch::setTarget(const std::vector<float>& learned, double box_radius, double aspect_x, double aspect_y)
@@ -222,7 +262,14 @@ void TemplateMatch::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Ei
   {
     double c = -1.0;
     if (hyp.valid[i] && std::isfinite(hyp.u[i]) && std::isfinite(hyp.v[i]) && std::isfinite(hyp.radius[i]))
-      c = score(window(gray, hyp.u[i], hyp.v[i], hyp.radius[i]));
+    {
+      // Only the grid points that weigh anything (a third of the grid, its corners, does not).
+      double hx, hy;
+      halfSizes(hyp.radius[i], hx, hy);
+      sampleSpans(gray, hyp.u[i], hyp.v[i], hx, hy, active_spans_.data(), active_scratch_.data());
+      c = correlate(active_scratch_.data(), active_weights_.data(), active_weighted_.data(),
+                    static_cast<Eigen::Index>(active_weights_.size()));
+    }
     log_likelihood[i] = (c - 1.0) / tunables_.sigma;
     similarity[i] = std::max(0.0, c);
   }

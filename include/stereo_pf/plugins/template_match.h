@@ -75,12 +75,21 @@ private:
   Tunables readTunables() const;
   /// The sampling weights of the grid (ellipse, ring, corners).
   void makeWeights();
+  /// active_weighted_ from weighted_ (empty until a template is in use).
+  void activeWeighted();
   /// Sample the grid at (u, v) with half-sizes (hx, hy) from `gray` into `out` (size*size values).
   void sample(const cv::Mat& gray, double u, double v, double hx, double hy, std::vector<float>& out) const;
   /// Zero-mean, unit weighted norm; false when the values have no contrast.
   bool normalise(std::vector<float>& values) const;
-  /// Weighted ZNCC of raw samples with the template in use.
+  /// Sample the grid's rows at (u, v) into `out`, row y over the columns spans[y] (every column when `spans` is
+  /// null), in row order.
+  void sampleSpans(const cv::Mat& gray, double u, double v, double hx, double hy, const std::pair<int, int>* spans,
+                   float* out) const;
+  /// Weighted ZNCC of the whole grid's raw samples (sample()) with the template in use.
   double score(const std::vector<float>& samples) const;
+  /// Weighted ZNCC of `n` raw samples with their weights and the weighted template in use (score(), or the grid's
+  /// points of non-zero weight: active_*).
+  double correlate(const float* samples, const float* weights, const float* weighted, Eigen::Index n) const;
   /// Window half-sizes for an apparent radius (<= 0: the box's).
   void halfSizes(double radius, double& hx, double& hy) const;
   void useTemplate();
@@ -96,11 +105,17 @@ private:
   int size_ = 13;
   std::vector<float> weights_;
   double weight_sum_ = 0.0;
+  /// Per grid row, the columns [first, second) of non-zero weight (the ellipse and its ring are convex, so one
+  /// run per row): a third of the grid, its corners, weighs nothing and is neither sampled nor scored.
+  std::vector<std::pair<int, int>> active_spans_;
+  std::vector<float> active_weights_;   ///< weights_ of those points, in row order
+  std::vector<float> active_weighted_;  ///< weighted_ of those points
   std::vector<float> learned_, running_, current_;  ///< normalised templates (current_ = anchor mix)
   std::vector<float> weighted_;  ///< weights_ times current_, for score()
   double box_radius_ = 0.0;  ///< half the box's mean side, px (2D hypotheses)
   double aspect_x_ = 1.0, aspect_y_ = 1.0;  ///< the box's half-width and half-height over box_radius_
   std::vector<float> scratch_;
+  std::vector<float> active_scratch_;  ///< evaluate()'s samples (sampleSpans() over active_spans_)
 };
 
 }  // namespace stereo_pf
