@@ -61,20 +61,23 @@ double ParticleSet::temper(const Eigen::VectorXd& prior_log, double min_ess)
   const int n = size();
   if (!(min_ess > 0.0) || effectiveSampleSize() >= min_ess || prior_log.size() != n)
     return 1.0;
-  // The ESS of the weights prior + beta * likelihood, from one pass of exponentials (no weights written).
+  // The ESS of the weights prior + beta * likelihood: the finite particles' prior and log-likelihood gathered
+  // once, then per beta one vectorised pass of exponentials (no weights written).
+  Eigen::ArrayXd prior(n), loglik(n);
+  int m = 0;
+  for (int i = 0; i < n; ++i)
+    if (std::isfinite(prior_log[i]) && std::isfinite(log_weights[i]))
+    {
+      prior[m] = prior_log[i];
+      loglik[m++] = log_weights[i] - prior_log[i];
+    }
+  Eigen::ArrayXd w(m);
   auto ess = [&](double beta) {
-    double top = -std::numeric_limits<double>::infinity();
-    for (int i = 0; i < n; ++i)
-      if (std::isfinite(prior_log[i]) && std::isfinite(log_weights[i]))
-        top = std::max(top, prior_log[i] + beta * (log_weights[i] - prior_log[i]));
-    double sum = 0.0, sum2 = 0.0;
-    for (int i = 0; i < n; ++i)
-      if (std::isfinite(prior_log[i]) && std::isfinite(log_weights[i]))
-      {
-        const double w = std::exp(prior_log[i] + beta * (log_weights[i] - prior_log[i]) - top);
-        sum += w;
-        sum2 += w * w;
-      }
+    if (m == 0)
+      return 0.0;
+    w = prior.head(m) + beta * loglik.head(m);
+    w = (w - w.maxCoeff()).exp();
+    const double sum = w.sum(), sum2 = w.square().sum();
     return sum2 > 0.0 ? sum * sum / sum2 : 0.0;
   };
   double lo = 0.0, hi = 1.0;  // ess(lo) keeps min_ess (the prior's spread, or as near as it comes)
