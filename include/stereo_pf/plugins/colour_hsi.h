@@ -76,9 +76,9 @@ public:
   /// hypothesis is treated as invalid.
   void evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
                 Eigen::Ref<Eigen::VectorXd> similarity) override;
-  /// Write a map named name() holding the binning and the target histogram (nothing without a target).
   /// Back-projection of the target histogram: q[bin] / max q per pixel (CV_8UC1), once per frame per view.
   bool targetMap(FeatureCache& cache, View view, cv::Mat& map) override;
+  /// Write a map named name() holding the binning and the target histogram (nothing without a target).
   void saveTarget(cv::FileStorage& fs) const override;
   /// Read a target written by saveTarget. `node` is either that map itself or a map containing it under
   /// name(). False with `error` set when absent, malformed or learned with a different binning.
