@@ -233,7 +233,7 @@ class Smoke(unittest.TestCase):
                          sorted((s, t, x) for s in ("stress_000", "stress_001")
                                 for t, x in (("ours", "1"), ("ours", "2"), ("ours", "3"), ("csrt", ""))))
         self.assertEqual(sorted((r["tracker"], r["seed"]) for r in real),
-                         [("csrt", ""), ("ours", "1"), ("ours", "2"), ("ours", "3")])
+                         sorted([("csrt", "")] + [("ours", str(s)) for s in stress.REAL_SEEDS]))
         for r in rows:
             self.assertEqual(r["error"], "", r)
             if r["ms_per_frame"]:
