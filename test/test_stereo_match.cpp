@@ -216,11 +216,57 @@ TEST(StereoMatch, FeaturelessPatchesDoNotCorrelate)
     EXPECT_LT(std::abs(m->zncc(cache, 150.0f, 150.0f - d, 120.0f, kRadius)), 0.3) << d;
 }
 
+/// A plain grey ball (grey level `ball`) on a plain wall (`wall`), anti-aliased by 4x4 supersampling, with
+/// Gaussian noise of 2 grey levels: all it shows is its outline against the wall.
+cv::Mat renderPlain(float u, float v, double ball, double wall, unsigned seed)
+{
+  std::mt19937 rng(seed);
+  std::normal_distribution<double> noise(0.0, 2.0);
+  cv::Mat img(kHeight, kWidth, CV_8UC1);
+  for (int y = 0; y < kHeight; ++y)
+    for (int x = 0; x < kWidth; ++x)
+    {
+      double inside = 0.0;
+      for (int sy = 0; sy < 4; ++sy)
+        for (int sx = 0; sx < 4; ++sx)
+        {
+          const double dx = x + (sx + 0.5) / 4.0 - 0.5 - u, dy = y + (sy + 0.5) / 4.0 - 0.5 - v;
+          inside += dx * dx + dy * dy <= kRadius * kRadius ? 1.0 / 16.0 : 0.0;
+        }
+      img.at<uint8_t>(y, x) = cv::saturate_cast<uint8_t>(inside * ball + (1.0 - inside) * wall + noise(rng));
+    }
+  return img;
+}
+
+TEST(StereoMatch, AnOutlineTheBackgroundsInvertStillMatchesOnItsEdges)
+{
+  // A grey ball before a dark curtain in the left view and before a bright panel in the right one (a real pitch
+  // at 3 m, where the 25 cm baseline puts different things behind it): brighter than its surround in one view,
+  // darker in the other, so the grey levels of its outline correlate negatively at the true disparity. Their
+  // gradient magnitudes do not care which side is brighter.
+  FeatureCache cache;
+  cache.reset(makeFrame(renderPlain(kLeftU, kV, 120.0, 40.0, 11),
+                        renderPlain(kLeftU - kDisparity, kV, 120.0, 220.0, 12)));
+  auto grey_only = makeModel(with("edges", "false"));
+  const double grey = grey_only->zncc(cache, kLeftU, kLeftU - kDisparity, kV, kRadius);
+  EXPECT_LT(grey, 0.0) << "the inverted outline should anti-correlate in grey levels";
+  auto m = makeModel();
+  const double at_truth = m->zncc(cache, kLeftU, kLeftU - kDisparity, kV, kRadius);
+  EXPECT_GT(at_truth, 0.6);
+  for (float off : { -6.0f, -3.0f, -1.5f, 1.5f, 3.0f, 6.0f })
+    EXPECT_LT(m->zncc(cache, kLeftU, kLeftU - kDisparity - off, kV, kRadius), at_truth) << off;
+  // Where the views agree the grey correlation is kept: the edges only add a way to match.
+  cache.reset(makeFrame(renderView(kLeftU, kV, 1), renderView(kLeftU - kDisparity, kV, 2)));
+  EXPECT_GE(m->zncc(cache, kLeftU, kLeftU - kDisparity, kV, kRadius),
+            grey_only->zncc(cache, kLeftU, kLeftU - kDisparity, kV, kRadius));
+}
+
 TEST(StereoMatch, ParametersAndTarget)
 {
   EXPECT_THROW(makeModel(with("rows", "0")), ParameterError);
   EXPECT_THROW(makeModel(with("sigma", "-1")), ParameterError);
   EXPECT_THROW(makeModel(with("column_step", "0")), ParameterError);
+  EXPECT_THROW(makeModel(with("edges", "maybe")), ParameterError);
   auto m = makeModel();
   EXPECT_TRUE(m->comparesViews());
   EXPECT_TRUE(m->hasTarget());

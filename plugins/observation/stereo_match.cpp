@@ -36,6 +36,9 @@ StereoMatch::Tunables StereoMatch::readTunables() const
   t.min_contrast = p.getDouble("min_contrast", t.min_contrast, 0.1, 100.0,
                                "grey levels; floor of each patch's standard deviation");
   t.min_radius = p.getDouble("min_radius", t.min_radius, 0.5, 100.0, "px; smaller apparent radii are clamped to it");
+  t.edges = p.getBool("edges", t.edges,
+                       "also correlate the views' Sobel gradient magnitudes and take the better of the two: an "
+                       "outline whose contrast the two views' backgrounds invert still matches");
   t.only_while_tracking = p.getBool("only_while_tracking", t.only_while_tracking,
                                     "skipped while searching or lost, where it would reward any textured surface it "
                                     "can triangulate");
@@ -73,8 +76,24 @@ void StereoMatch::evaluate(FeatureCache&, const ImageHypotheses& hyp, Eigen::Ref
 
 double StereoMatch::zncc(FeatureCache& cache, float u_left, float u_right, float v, float radius)
 {
-  return match(cache.gray(View::Left), cv::Point(0, 0), cache.gray(View::Right), cv::Point(0, 0), u_left, u_right, v,
-               radius);
+  const cv::Mat& left = cache.gray(View::Left);
+  const cv::Mat& right = cache.gray(View::Right);
+  const cv::Point origin(0, 0);
+  if (!tunables_.edges)
+    return match(left, origin, right, origin, u_left, u_right, v, radius);
+  edgeImage(left, edges_[0]);
+  edgeImage(right, edges_[1]);
+  return match(left, origin, right, origin, u_left, u_right, v, radius, &edges_[0], &edges_[1]);
+}
+
+void StereoMatch::edgeImage(const cv::Mat& grey, cv::Mat& edges)
+{
+  // 3x3 Sobel: a full 0-255 step gives at most 4 * 255 along one axis, so a quarter keeps the levels in 8 bits
+  // (a diagonal step's sqrt(2) more saturates: an outline is still an outline).
+  cv::Sobel(grey, sobel_x_, CV_32F, 1, 0, 3, 1.0, 0.0, cv::BORDER_REPLICATE);
+  cv::Sobel(grey, sobel_y_, CV_32F, 0, 1, 3, 1.0, 0.0, cv::BORDER_REPLICATE);
+  cv::magnitude(sobel_x_, sobel_y_, magnitude_);
+  magnitude_.convertTo(edges, CV_8U, 0.25);
 }
 
 namespace
@@ -97,7 +116,8 @@ double StereoMatch::halfSize(float radius) const
 }
 
 double StereoMatch::match(const cv::Mat& left, cv::Point left_origin, const cv::Mat& right, cv::Point right_origin,
-                          float u_left, float u_right, float v, float radius) const
+                          float u_left, float u_right, float v, float radius, const cv::Mat* left_edges,
+                          const cv::Mat* right_edges) const
 {
   constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
   if (!(radius > 0.0f) || !std::isfinite(u_left) || !std::isfinite(u_right) || !std::isfinite(v))
@@ -130,7 +150,19 @@ double StereoMatch::match(const cv::Mat& left, cv::Point left_origin, const cv::
   const int in_hi = std::min(floorDiv(left.cols - 2 - xl0, step), floorDiv(right.cols - 2 - xr0, step));
 
   int nominal = 0;
-  MatchSums m;
+  MatchSums m, e;  // grey levels, and gradient magnitudes (`edges`) at the same samples
+  const bool edges = left_edges && right_edges;
+  // Relative to mid-grey: keeps the float sums of squares well conditioned.
+  const auto add = [fl, fr](MatchSums& sums, const uint8_t* lrow, const uint8_t* rrow, int xl, int xr) {
+    const float l0 = lrow[xl], r0 = rrow[xr];
+    const float a = l0 + fl * (static_cast<float>(lrow[xl + 1]) - l0) - 128.0f;
+    const float b = r0 + fr * (static_cast<float>(rrow[xr + 1]) - r0) - 128.0f;
+    sums.sa += a;
+    sums.sb += b;
+    sums.saa += a * a;
+    sums.sbb += b * b;
+    sums.sab += a * b;
+  };
   for (int k = 0; k < rows; ++k)
   {
     const double dy = (k - 0.5 * (rows - 1)) * row_spacing;
@@ -142,30 +174,35 @@ double StereoMatch::match(const cv::Mat& left, cv::Point left_origin, const cv::
       continue;
     const uint8_t* lrow = left.ptr<uint8_t>(yl);
     const uint8_t* rrow = right.ptr<uint8_t>(yr);
-    // Relative to mid-grey: keeps the float sums of squares well conditioned.
-    for (int kx = lo; kx <= hi; ++kx)
+    if (edges)
     {
-      const int xl = xl0 + kx * step, xr = xr0 + kx * step;
-      const float l0 = lrow[xl], r0 = rrow[xr];
-      const float a = l0 + fl * (static_cast<float>(lrow[xl + 1]) - l0) - 128.0f;
-      const float b = r0 + fr * (static_cast<float>(rrow[xr + 1]) - r0) - 128.0f;
-      m.sa += a;
-      m.sb += b;
-      m.saa += a * a;
-      m.sbb += b * b;
-      m.sab += a * b;
+      // One pass over both pairs of images: the samples' places and interpolation weights are shared.
+      const uint8_t* lerow = left_edges->ptr<uint8_t>(yl);
+      const uint8_t* rerow = right_edges->ptr<uint8_t>(yr);
+      for (int kx = lo; kx <= hi; ++kx)
+      {
+        add(m, lrow, rrow, xl0 + kx * step, xr0 + kx * step);
+        add(e, lerow, rerow, xl0 + kx * step, xr0 + kx * step);
+      }
     }
+    else
+      for (int kx = lo; kx <= hi; ++kx)
+        add(m, lrow, rrow, xl0 + kx * step, xr0 + kx * step);
     m.n += hi - lo + 1;
   }
   if (m.n < 3 || 2 * m.n < nominal)
     return kNaN;
   const double inv_n = 1.0 / m.n;
   const double floor2 = tunables_.min_contrast * tunables_.min_contrast;
-  const double ma = m.sa * inv_n, mb = m.sb * inv_n;
-  const double var_a = std::max(m.saa * inv_n - ma * ma, floor2);
-  const double var_b = std::max(m.sbb * inv_n - mb * mb, floor2);
-  const double cov = m.sab * inv_n - ma * mb;
-  return std::max(-1.0, std::min(1.0, cov / std::sqrt(var_a * var_b)));
+  const auto zncc = [inv_n, floor2](const MatchSums& sums) {
+    const double ma = sums.sa * inv_n, mb = sums.sb * inv_n;
+    const double var_a = std::max(sums.saa * inv_n - ma * ma, floor2);
+    const double var_b = std::max(sums.sbb * inv_n - mb * mb, floor2);
+    const double cov = sums.sab * inv_n - ma * mb;
+    return std::max(-1.0, std::min(1.0, cov / std::sqrt(var_a * var_b)));
+  };
+  // The better of the two: an outline matches in its edges whichever side of it is brighter in each view.
+  return edges ? std::max(zncc(m), zncc(e)) : zncc(m);
 }
 
 void StereoMatch::greyRegion(FeatureCache& cache, const ImageHypotheses& hyp, const ImageHypotheses& partner,
@@ -229,6 +266,12 @@ void StereoMatch::evaluatePair(FeatureCache& cache, const ImageHypotheses& left,
   cv::Point origin_left, origin_right;
   greyRegion(cache, left, right, grey_[0], origin_left);
   greyRegion(cache, right, left, grey_[1], origin_right);
+  const bool edges = tunables_.edges;
+  if (edges)
+  {
+    edgeImage(grey_[0], edges_[0]);
+    edgeImage(grey_[1], edges_[1]);
+  }
   const double inv_two_sigma2 = 1.0 / (2.0 * tunables_.sigma * tunables_.sigma);
   for (int i = 0; i < n; ++i)
   {
@@ -236,7 +279,7 @@ void StereoMatch::evaluatePair(FeatureCache& cache, const ImageHypotheses& left,
       continue;
     // Rectified: both views share the row; the radius is the left one (equal for a point model).
     const double z = match(grey_[0], origin_left, grey_[1], origin_right, left.u[i], right.u[i], left.v[i],
-                           left.radius[i]);
+                           left.radius[i], edges ? &edges_[0] : nullptr, edges ? &edges_[1] : nullptr);
     if (std::isnan(z))
       continue;
     log_likelihood[i] = -(1.0 - z) * inv_two_sigma2;
