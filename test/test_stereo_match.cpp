@@ -240,10 +240,10 @@ cv::Mat renderPlain(float u, float v, double ball, double wall, unsigned seed)
 
 TEST(StereoMatch, AnOutlineTheBackgroundsInvertStillMatchesOnItsEdges)
 {
-  // A grey ball before a dark curtain in the left view and before a bright panel in the right one (a real pitch
-  // at 3 m, where the 25 cm baseline puts different things behind it): brighter than its surround in one view,
-  // darker in the other, so the grey levels of its outline correlate negatively at the true disparity. Their
-  // gradient magnitudes do not care which side is brighter.
+  // A grey ball before a dark curtain in the left view and before a bright panel in the right one (catch_test1's
+  // last frames, where the ball is near enough for the two views to see different things behind it): brighter
+  // than its surround in one view, darker in the other, so the grey levels of its outline correlate negatively
+  // at the true disparity. Their gradient magnitudes do not care which side is brighter.
   FeatureCache cache;
   cache.reset(makeFrame(renderPlain(kLeftU, kV, 120.0, 40.0, 11),
                         renderPlain(kLeftU - kDisparity, kV, 120.0, 220.0, 12)));
