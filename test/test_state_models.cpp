@@ -5,6 +5,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <vector>
 
 #include "stereo_pf/core/engine.h"
 #include "stereo_pf/sim/scene.h"
@@ -266,13 +268,26 @@ TEST(StereoConstraints, HypothesesTakeTheApparentRadiusAtTheAgreedDepth)
 
 TEST(Engine, TracksTheRenderedPendulumFromUniformInitialisation)
 {
-  const TrackRun run = track("pendulum_uncluttered.yaml", 90, 1);
-  // Converged within 30 frames and stays within a few centimetres afterwards.
-  double worst = 0.0;
-  for (size_t k = 30; k < run.errors.size(); ++k)
-    worst = std::max(worst, run.errors[k]);
-  EXPECT_LT(worst, 0.10);
-  EXPECT_EQ(run.states.back(), TrackState::Tracking);
+  // Converged within 30 frames and stays within a few centimetres afterwards, over several seeds.
+  std::vector<double> worsts, means;
+  for (unsigned long seed = 1; seed <= 8; ++seed)
+  {
+    const TrackRun run = track("pendulum_uncluttered.yaml", 90, seed);
+    double worst = 0.0, sum = 0.0;
+    for (size_t k = 30; k < run.errors.size(); ++k)
+    {
+      worst = std::max(worst, run.errors[k]);
+      sum += run.errors[k];
+    }
+    worsts.push_back(worst);
+    means.push_back(sum / (run.errors.size() - 30));
+    std::printf("seed %lu: worst %.4f m, mean %.4f m\n", seed, worst, means.back());
+    EXPECT_EQ(run.states.back(), TrackState::Tracking) << "seed " << seed;
+  }
+  std::sort(worsts.begin(), worsts.end());
+  EXPECT_LT(worsts[worsts.size() / 2], 0.10);
+  EXPECT_LT(worsts.back(), 0.15);
+  EXPECT_LT(*std::max_element(means.begin(), means.end()), 0.04);
 }
 
 TEST(Engine, StereoConstraintsTracksToo)
