@@ -109,6 +109,47 @@ TEST(FeatureCache, RowProductsComputeOnlyTheMissingRows)
   EXPECT_EQ(cv::norm(band, full.rowRange(8, 22), cv::NORM_INF), 0.0);
 }
 
+// Region products: a request outside the valid rectangle grows it to the bounding box, computing only the strips
+// the box adds; the pixels asked for equal the whole-image computation; rows and regions share a key.
+TEST(FeatureCache, RegionProductsComputeOnlyTheStripsTheBoundingBoxAdds)
+{
+  FeatureCache cache;
+  cache.reset(frame(10));
+  std::vector<cv::Rect> calls;
+  auto compute = [&calls](const cv::Mat& image, cv::Mat& out, const cv::Rect& r) {
+    calls.push_back(r);
+    out.create(image.size(), CV_8UC1);
+    if (!r.empty())
+    {
+      cv::Mat part = out(r);
+      cv::cvtColor(image(r), part, cv::COLOR_BGR2GRAY);
+    }
+  };
+  cache.getRegion(View::Left, "g", cv::Rect(10, 10, 20, 10), compute);
+  cache.getRegion(View::Left, "g", cv::Rect(12, 12, 5, 5), compute);  // inside: nothing to do
+  cache.getRegion(View::Left, "g", cv::Rect(5, 15, 10, 20), compute);  // left and below: bounding box (5, 10)-(30, 35)
+  cache.getRegion(View::Left, "g", cv::Rect(-3, -3, 2, 2), compute);  // clipped to nothing: nothing to do
+  const std::vector<cv::Rect> expected{ cv::Rect(10, 10, 20, 10), cv::Rect(5, 20, 25, 15), cv::Rect(5, 10, 5, 10) };
+  EXPECT_EQ(calls, expected);
+  cv::Mat full;
+  cv::cvtColor(cache.image(View::Left), full, cv::COLOR_BGR2GRAY);
+  const cv::Rect box(5, 10, 25, 25);
+  EXPECT_EQ(cv::norm(cache.getRegion(View::Left, "g", box, compute)(box), full(box), cv::NORM_INF), 0.0);
+  EXPECT_EQ(calls.size(), expected.size());
+
+  // Whole rows of the same key: the rows above over the full width, then the box's rows again whole (a RowCompute
+  // cannot fill less), once.
+  calls.clear();
+  cache.getRows(View::Left, "g", 8, 30, [&](const cv::Mat& image, cv::Mat& out, int y0, int y1) {
+    compute(image, out, cv::Rect(0, y0, image.cols, y1 - y0));
+  });
+  const std::vector<cv::Rect> rows{ cv::Rect(0, 8, 64, 2), cv::Rect(0, 10, 64, 25) };
+  EXPECT_EQ(calls, rows);
+  EXPECT_EQ(cv::norm(cache.getRows(View::Left, "g", 8, 35, nullptr).rowRange(8, 35), full.rowRange(8, 35),
+                     cv::NORM_INF),
+            0.0);
+}
+
 TEST(FeatureCache, BrightnessIsTheMeanGreyLevelAndAGainMakesTheProductsStale)
 {
   cv::Mat left(48, 64, CV_8UC3, cv::Scalar(10, 20, 30)), right(48, 64, CV_8UC1, cv::Scalar(200));

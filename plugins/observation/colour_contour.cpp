@@ -189,17 +189,22 @@ bool ColourContour::learnTarget(FeatureCache& cache, View view, const cv::Rect& 
 
 const cv::Mat& ColourContour::foregroundMap(FeatureCache& cache, View view, int y0, int y1)
 {
+  return foregroundMap(cache, view, cv::Rect(0, y0, cache.image(view).cols, std::max(0, y1 - y0)));
+}
+
+const cv::Mat& ColourContour::foregroundMap(FeatureCache& cache, View view, const cv::Rect& region)
+{
   if (!binner_)
     throw std::logic_error("ColourContour: used before initialize()");
   const std::string key = "colour_contour/" + std::to_string(reinterpret_cast<uintptr_t>(this)) + "/" +
                           std::to_string(target_version_);
-  return cache.getRows(view, key, y0, y1, [this, &cache, view](const cv::Mat& image, cv::Mat& out, int a, int b) {
+  return cache.getRegion(view, key, region, [this, &cache, view](const cv::Mat& image, cv::Mat& out, const cv::Rect& r) {
     out.create(image.size(), CV_8UC1);
-    if (a >= b)
+    if (r.empty())
       return;
-    cv::Mat rows = out.rowRange(a, b);
+    cv::Mat part = out(r);
     const cv::Mat lut(1, 256, CV_8UC1, lut_.data());
-    cv::LUT(binner_->cachedBins(cache, view, a, b).rowRange(a, b), lut, rows);
+    cv::LUT(binner_->cachedBins(cache, view, r)(r), lut, part);
   });
 }
 
@@ -373,9 +378,9 @@ void ColourContour::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Ei
   const float cx = static_cast<float>(cache.geometry().cx());
   const float cy = static_cast<float>(cache.geometry().cy());
 
-  // The outlines first: they say which rows of the P map are read.
+  // The outlines first: they say which pixels of the P map are read.
   outlines_.resize(static_cast<size_t>(n));
-  float top = static_cast<float>(height), bottom = -1.0f;
+  float left = static_cast<float>(width), right = -1.0f, top = static_cast<float>(height), bottom = -1.0f;
   for (int i = 0; i < n; ++i)
   {
     Outline& o = outlines_[static_cast<size_t>(i)];
@@ -385,11 +390,12 @@ void ColourContour::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Ei
       continue;
     }
     const float extent = std::max(o.a, o.b) + static_cast<float>(reach_) + 1.0f;
+    left = std::min(left, o.cu - extent);
+    right = std::max(right, o.cu + extent);
     top = std::min(top, o.cv - extent);
     bottom = std::max(bottom, o.cv + extent);
   }
-  const std::pair<int, int> rows = rowSpan(top, bottom, height);
-  const cv::Mat& fg = foregroundMap(cache, hyp.view, rows.first, rows.second);
+  const cv::Mat& fg = foregroundMap(cache, hyp.view, spanRegion(left, right, top, bottom, width, height));
 
   const double inv_two_sigma2 = 1.0 / (2.0 * tunables_.sigma * tunables_.sigma);
   const double inv_background = 1.0 / background_mismatch_;
@@ -423,8 +429,8 @@ double ColourContour::mismatch(FeatureCache& cache, View view, float u, float v,
     return std::numeric_limits<double>::quiet_NaN();
   const cv::Mat& image = cache.image(view);
   const float extent = std::max(o.a, o.b) + static_cast<float>(reach_) + 1.0f;
-  const std::pair<int, int> rows = rowSpan(o.cv - extent, o.cv + extent, image.rows);
-  const cv::Mat& fg = foregroundMap(cache, view, rows.first, rows.second);
+  const cv::Mat& fg = foregroundMap(
+      cache, view, spanRegion(o.cu - extent, o.cu + extent, o.cv - extent, o.cv + extent, image.cols, image.rows));
   return score(fg.data, fg.step[0], image.cols, image.rows, o);
 }
 

@@ -105,6 +105,13 @@ const cv::Mat& ColourHSI::binImage(FeatureCache& cache, View view, int y0, int y
   return binner_->cachedBins(cache, view, y0, y1);
 }
 
+const cv::Mat& ColourHSI::binImage(FeatureCache& cache, View view, const cv::Rect& region)
+{
+  if (!binner_)
+    throw std::logic_error("ColourHSI: used before initialize()");
+  return binner_->cachedBins(cache, view, region);
+}
+
 double ColourHSI::targetProbability(int bin) const
 {
   if (!target_.valid() || bin < 0 || bin >= target_.bins())
@@ -150,7 +157,7 @@ void ColourHSI::adapt(FeatureCache& cache, const ImageHypotheses& estimate)
   const float half = static_cast<float>(tunables_.window_scale) * r;
   const cv::Rect box(cvRound(estimate.u[0] - half), cvRound(estimate.v[0] - half), cvRound(2.0f * half) + 1,
                      cvRound(2.0f * half) + 1);
-  const cv::Mat& bins = binImage(cache, estimate.view, std::max(0, box.y), box.y + box.height);
+  const cv::Mat& bins = binImage(cache, estimate.view, box);
   const TargetHistogram seen = TargetHistogram::fromBinImage(bins, box, binning_.bins());
   if (!seen.valid())
     return;
@@ -206,14 +213,14 @@ void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen:
       ring = 0.0f;
   };
 
-  // Only the rows the windows and rings reach need binning (a band of the image while tracking).
-  const std::pair<int, int> rows = windowRowSpan(hyp, height, [&](int i) {
+  // Only the pixels the windows and rings reach need binning (a patch of the image while tracking).
+  const cv::Rect region = windowRegion(hyp, width, height, [&](int i) {
     float half, ring;
     extent(i, half, ring);
     return std::max(half, ring);
   });
-  // Once per view per frame (in the rows not binned yet), shared by every hypothesis.
-  const cv::Mat& bins = binImage(cache, hyp.view, rows.first, rows.second);
+  // Once per view per frame (in the pixels not binned yet), shared by every hypothesis.
+  const cv::Mat& bins = binImage(cache, hyp.view, region);
   const size_t step = bins.step[0];
   const uint8_t* data = bins.data;
 

@@ -183,13 +183,19 @@ HsiBinner::HsiBinner(const HsiBinning& binning)
 
 const cv::Mat& HsiBinner::cachedBins(FeatureCache& cache, View view, int y0, int y1) const
 {
+  const int cols = cache.image(view).cols;
+  return cachedBins(cache, view, cv::Rect(0, y0, cols, std::max(0, y1 - y0)));
+}
+
+const cv::Mat& HsiBinner::cachedBins(FeatureCache& cache, View view, const cv::Rect& region) const
+{
   const double gain = cache.gain(view);
-  return cache.getRows(view, cache_key_, y0, y1, [this, gain](const cv::Mat& image, cv::Mat& out, int a, int b) {
+  return cache.getRegion(view, cache_key_, region, [this, gain](const cv::Mat& image, cv::Mat& out, const cv::Rect& r) {
     out.create(image.size(), CV_8UC1);
-    if (a >= b)
+    if (r.empty())
       return;
-    cv::Mat rows = out.rowRange(a, b);  // the right size and type: binImage() fills it in place
-    binImage(image.rowRange(a, b), rows, gain);
+    cv::Mat part = out(r);  // the right size and type: binImage() fills it in place
+    binImage(image(r), part, gain);
   });
 }
 

@@ -62,42 +62,65 @@ const cv::Mat& FeatureCache::get(View view, const std::string& key, const Comput
 
 const cv::Mat& FeatureCache::getRows(View view, const std::string& key, int y0, int y1, const RowCompute& compute)
 {
+  const int cols = frame_.image(view).cols;
+  return grow(view, key, cv::Rect(0, y0, cols, std::max(0, y1 - y0)),
+              [&compute](const cv::Mat& image, cv::Mat& out, const cv::Rect& region) {
+                compute(image, out, region.y, region.y + region.height);
+              },
+              true);
+}
+
+const cv::Mat& FeatureCache::getRegion(View view, const std::string& key, const cv::Rect& region,
+                                       const RegionCompute& compute)
+{
+  return grow(view, key, region, compute, false);
+}
+
+const cv::Mat& FeatureCache::grow(View view, const std::string& key, const cv::Rect& region,
+                                  const RegionCompute& compute, bool whole_rows)
+{
   const cv::Mat& image = frame_.image(view);
-  y0 = std::max(y0, 0);
-  y1 = std::min(y1, image.rows);
+  cv::Rect want = region & cv::Rect(0, 0, image.cols, image.rows);
+  if (want.empty())  // keeps where it was asked for (clamped to the image), for the compute's benefit
+    want = cv::Rect(std::clamp(region.x, 0, image.cols), std::clamp(region.y, 0, image.rows), 0, 0);
   Entry& e = entries_[key];
   const int k = static_cast<int>(view);
-  int& have0 = e.row0[k];
-  int& have1 = e.row1[k];
+  cv::Rect& have = e.valid[k];
   if (e.frame_id[k] != frame_id_)
   {
     e.frame_id[k] = frame_id_;
-    have0 = have1 = 0;
+    have = cv::Rect();
   }
-  if (have0 >= have1)
+  if (have.empty())
   {
     // Nothing yet this frame (an empty request still allocates the buffer).
-    compute(image, e.mat[k], y0, std::max(y0, y1));
-    have0 = y0;
-    have1 = std::max(y0, y1);
+    compute(image, e.mat[k], want);
+    have = want;
     ++compute_count_;
     return e.mat[k];
   }
-  if (y0 >= y1)
+  if (want.empty())
     return e.mat[k];
-  // Extend the valid range to cover [y0, y1); it stays one contiguous range.
-  if (y0 < have0)
-  {
-    compute(image, e.mat[k], y0, have0);
-    have0 = y0;
+  // Grow the valid rectangle to the bounding box: the rows above and below it over the box's width, then the
+  // columns left and right of it over its rows (whole rows: those rows once, over the box's width).
+  const cv::Rect box = have | want;
+  const int top = have.y, bottom = have.y + have.height, left = have.x, right = have.x + have.width;
+  auto run = [&](const cv::Rect& strip) {
+    if (strip.empty())
+      return;
+    compute(image, e.mat[k], strip);
     ++compute_count_;
-  }
-  if (y1 > have1)
+  };
+  run(cv::Rect(box.x, box.y, box.width, top - box.y));
+  run(cv::Rect(box.x, bottom, box.width, box.y + box.height - bottom));
+  if (whole_rows && box.width > have.width)
+    run(cv::Rect(box.x, top, box.width, have.height));
+  else if (!whole_rows)
   {
-    compute(image, e.mat[k], have1, y1);
-    have1 = y1;
-    ++compute_count_;
+    run(cv::Rect(box.x, top, left - box.x, have.height));
+    run(cv::Rect(right, top, box.x + box.width - right, have.height));
   }
+  have = box;
   return e.mat[k];
 }
 

@@ -104,6 +104,8 @@ public:
   /// "hsi_bins/<binning>" (so every model with the same binning shares it), at the cache's gain for that view
   /// (FeatureCache::gain()); only rows [y0, y1) are guaranteed (FeatureCache::getRows()).
   const cv::Mat& cachedBins(FeatureCache& cache, View view, int y0, int y1) const;
+  /// The same, of which only the pixels of `region` are guaranteed (FeatureCache::getRegion()).
+  const cv::Mat& cachedBins(FeatureCache& cache, View view, const cv::Rect& region) const;
 
 private:
   /// Gains are applied in steps of 1/kGainSteps.

@@ -44,6 +44,17 @@ public:
   /// the image, not all of it. Rows that were not asked for this frame hold stale data: read only the
   /// rows you asked for.
   const cv::Mat& getRows(View view, const std::string& key, int y0, int y1, const RowCompute& compute);
+
+  /// Function that fills the pixels of `region` of `out` (allocating `out` at the image's size, like a RowCompute)
+  /// and no others. `region` may be empty: then it only allocates.
+  using RegionCompute = std::function<void(const cv::Mat& image, cv::Mat& out, const cv::Rect& region)>;
+  /// Like getRows(), for a product computed pixel by pixel, of which only `region` (clipped to the image) is
+  /// needed. What is valid this frame is one rectangle: a request outside it grows it to the bounding box of the
+  /// two and computes only the strips that box adds (at most four calls). While tracking, the windows of a
+  /// cloud cover a patch of the image, narrower than the band of rows it spans. Pixels that were not asked
+  /// for this frame hold stale data. A key may be asked for both ways: getRows() computes whole rows, so the
+  /// valid rectangle's rows are computed again whole when it is narrower than the image.
+  const cv::Mat& getRegion(View view, const std::string& key, const cv::Rect& region, const RegionCompute& compute);
   /// 8-bit grey image of a view.
   const cv::Mat& gray(View view);
   /// Rows [y0, y1) (clipped) of the 8-bit grey image of a view (see getRows()).
@@ -69,12 +80,15 @@ public:
   long computeCount() const { return compute_count_; }
 
 private:
+  /// getRegion(), and getRows() with `whole_rows`: `compute` fills whole rows only, so rows of the valid rectangle
+  /// that it does not span are computed again whole, in one call.
+  const cv::Mat& grow(View view, const std::string& key, const cv::Rect& region, const RegionCompute& compute,
+                      bool whole_rows);
   struct Entry
   {
     cv::Mat mat[2];
     long frame_id[2] = { -1, -1 };
-    int row0[2] = { 0, 0 };  ///< rows [row0, row1) are valid this frame (getRows() products)
-    int row1[2] = { 0, 0 };
+    cv::Rect valid[2];  ///< the pixels valid this frame (getRegion() and getRows() products)
   };
   StereoFrame frame_;
   long frame_id_ = 0;

@@ -78,6 +78,8 @@ public:
   /// Rows [y0, y1) of the per-pixel target probability P of `view` (CV_8UC1, 255 P), through the cache.
   /// Without a target every pixel is 128.
   const cv::Mat& foregroundMap(FeatureCache& cache, View view, int y0, int y1);
+  /// The same map, of which only the pixels of `region` are guaranteed (FeatureCache::getRegion()).
+  const cv::Mat& foregroundMap(FeatureCache& cache, View view, const cv::Rect& region);
   /// Mean squared difference m between P and the soft step for one hypothesis at (u, v) with `radius` (as in
   /// ImageHypotheses), NaN when it cannot be measured (for tests and diagnostics).
   double mismatch(FeatureCache& cache, View view, float u, float v, float radius);

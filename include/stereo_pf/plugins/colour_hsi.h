@@ -102,6 +102,8 @@ public:
   const cv::Mat& binImage(FeatureCache& cache, View view);
   /// The same image, of which only rows [y0, y1) are guaranteed (FeatureCache::getRows()).
   const cv::Mat& binImage(FeatureCache& cache, View view, int y0, int y1);
+  /// The same image, of which only the pixels of `region` are guaranteed (FeatureCache::getRegion()).
+  const cv::Mat& binImage(FeatureCache& cache, View view, const cv::Rect& region);
 
 protected:
   /// Read and validate every parameter, build the colour table and the scratch buffers.
