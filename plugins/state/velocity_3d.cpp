@@ -19,7 +19,7 @@ void Velocity3D::onInitialize()
                               "m per frame of extra position jitter (0: jitter_radii of the object's radius)");
   jitter_radii_ = params().getDouble("jitter_radii", 0.25, 0.0, 10.0,
                                      "position jitter per frame in object radii, when noise is 0");
-  acceleration_noise_ = params().getDouble("acceleration_noise", 12.0, 0.0, 1000.0,
+  acceleration_noise_ = params().getDouble("acceleration_noise", 20.0, 0.0, 1000.0,
                                            "m/s^2; std of the acceleration noise");
   initial_speed_ = params().getDouble("initial_speed", 0.3, 0.0, 100.0, "m/s; spread of the prior's velocities");
   max_speed_ = params().getDouble("max_speed", 40.0, 0.01, 1000.0,
