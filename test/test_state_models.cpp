@@ -198,6 +198,7 @@ TEST(Velocity3D, ConstantVelocityMovesTheCloud)
   p.set("noise", 0.0);
   p.set("jitter_radii", 0.0);
   p.set("acceleration_noise", 0.0);
+  p.set("smooth_acceleration_noise", 0.0);
   auto m = make<Velocity3D>(p);
   ParticleSet s;
   s.resize(10, 6);
@@ -217,12 +218,46 @@ TEST(Velocity3D, AccelerationNoiseScalesWithDt)
   Parameters p;
   p.set("noise", 0.0);
   p.set("acceleration_noise", 2.0);
+  p.set("smooth_fraction", 0.0);
   auto m = make<Velocity3D>(p);
   ParticleSet s;
   s.resize(20000, 6);
   Rng rng(4);
   m->predict(0, 0.1, s, rng);
   EXPECT_NEAR(columnStd(s.states)[3], 0.2, 0.01);  // sigma_v = a * dt
+}
+
+TEST(Velocity3D, MostParticlesMoveSmoothlyAndSomeWidely)
+{
+  // By default 80 % of the particles get the smooth motion's acceleration noise (2 m/s^2) and half the jitter,
+  // the rest 20 m/s^2 and the whole jitter (0.25 radii), drawn per particle and frame.
+  Parameters p;
+  p.set("object_radius", 0.04);
+  auto m = make<Velocity3D>(p);
+  ParticleSet s;
+  const int n = 40000;
+  s.resize(n, 6);
+  Rng rng(5);
+  const double dt = 0.1;
+  m->predict(0, dt, s, rng);
+  int smooth_v = 0;
+  for (int i = 0; i < n; ++i)
+    smooth_v += std::abs(s.states(i, 3)) < 3.0 * 2.0 * dt ? 1 : 0;
+  // Within 3 sigma of the smooth part: 0.8 * 0.9973 of the smooth particles plus 0.2 * P(|N(0, 2)| < 0.6).
+  EXPECT_NEAR(static_cast<double>(smooth_v) / n, 0.8 * 0.9973 + 0.2 * 0.2358, 0.01);
+  // sigma_v of the mixture: sqrt(0.8 (2 dt)^2 + 0.2 (20 dt)^2).
+  EXPECT_NEAR(columnStd(s.states)[3], std::sqrt(0.8 * 0.04 + 0.2 * 4.0), 0.02);
+  // Each particle draws one mode for all three axes: its x and y velocities are both small or both wide.
+  int both_small = 0;
+  for (int i = 0; i < n; ++i)
+    both_small += std::abs(s.states(i, 3)) < 0.6 && std::abs(s.states(i, 4)) < 0.6 ? 1 : 0;
+  EXPECT_NEAR(static_cast<double>(both_small) / n, 0.8 * 0.9973 * 0.9973 + 0.2 * 0.2358 * 0.2358, 0.01);
+  // Position: x = v dt + jitter, jitter 0.25 * 4 cm = 1 cm (smooth: 0.5 cm).
+  const double sx = std::sqrt(0.8 * (0.04 * dt * dt + 0.005 * 0.005) + 0.2 * (4.0 * dt * dt + 0.01 * 0.01));
+  EXPECT_NEAR(columnStd(s.states)[0], sx, 0.01 * sx * 3);
+  Parameters bad;
+  bad.set("smooth_fraction", 1.5);
+  EXPECT_THROW(make<Velocity3D>(bad), ParameterError);
 }
 
 TEST(StateModels, BadParametersAreExplained)

@@ -21,6 +21,12 @@ void Velocity3D::onInitialize()
                                      "position jitter per frame in object radii, when noise is 0");
   acceleration_noise_ = params().getDouble("acceleration_noise", 20.0, 0.0, 1000.0,
                                            "m/s^2; std of the acceleration noise");
+  smooth_fraction_ = params().getDouble("smooth_fraction", 0.8, 0.0, 1.0,
+                                       "share of the particles predicted with the smooth motion's noise each frame");
+  smooth_acceleration_noise_ = params().getDouble("smooth_acceleration_noise", 2.0, 0.0, 1000.0,
+                                                  "m/s^2; acceleration noise of the smooth motion");
+  smooth_jitter_ = params().getDouble("smooth_jitter", 0.5, 0.0, 10.0,
+                                      "position jitter of the smooth motion, as a fraction of the jitter");
   initial_speed_ = params().getDouble("initial_speed", 0.3, 0.0, 100.0, "m/s; spread of the prior's velocities");
   max_speed_ = params().getDouble("max_speed", 40.0, 0.01, 1000.0,
                                   "m/s; each velocity component is clamped to +-max_speed (keeps a diverging "
@@ -47,16 +53,19 @@ void Velocity3D::setArrival(const StateEstimate& from, double dt, int, ParticleS
 
 void Velocity3D::predict(int, double dt, ParticleSet& particles, Rng& rng) const
 {
-  std::normal_distribution<double> accel(0.0, acceleration_noise_ * dt);
-  std::normal_distribution<double> jitter(0.0, noise_ > 0.0 ? noise_ : jitter_radii_ * radius());
-  for (int k = 0; k < 3; ++k)
+  std::normal_distribution<double> unit(0.0, 1.0);
+  std::uniform_real_distribution<double> pick(0.0, 1.0);
+  const double jitter = noise_ > 0.0 ? noise_ : jitter_radii_ * radius();
+  const double wide[2] = { acceleration_noise_ * dt, jitter };
+  const double smooth[2] = { smooth_acceleration_noise_ * dt, smooth_jitter_ * jitter };
+  for (int i = 0; i < particles.size(); ++i)
   {
-    double* x = particles.states.col(k).data();
-    double* v = particles.states.col(k + 3).data();
-    for (int i = 0; i < particles.size(); ++i)
+    const double* sd = pick(rng) < smooth_fraction_ ? smooth : wide;
+    for (int k = 0; k < 3; ++k)
     {
-      v[i] = std::clamp(v[i] + accel(rng), -max_speed_, max_speed_);
-      x[i] += v[i] * dt + jitter(rng);
+      double& v = particles.states(i, k + 3);
+      v = std::clamp(v + sd[0] * unit(rng), -max_speed_, max_speed_);
+      particles.states(i, k) += v * dt + sd[1] * unit(rng);
     }
   }
 }
