@@ -152,14 +152,15 @@ const std::vector<EngineField>& engineFields()
                                 "too (0: never)"),
     doubleField<&C::reacquire_margin>("reacquire_margin", 0.0, 1.0, true,
                                       "once tracked, found again (searching or lost) only with evidence within "
-                                      "this of the object's when its first track began (1: found_similarity "
-                                      "alone)"),
+                                      "this of the object's in its last track's seen frames (hold_follow; 1: "
+                                      "found_similarity alone)"),
     doubleField<&C::hold_margin>("hold_margin", 0.0, 1.0, true,
                                  "while tracking, seen only with evidence within this of the object's when its "
                                  "first track began (1: off)"),
     doubleField<&C::hold_follow>("hold_follow", 0.0, 1.0, true,
-                                 "the measure of hold_margin follows the evidence of the track's seen frames by this "
-                                 "much per frame, never above the first track's (0: that alone)"),
+                                 "the measure of hold_margin and reacquire_margin follows the evidence of the "
+                                 "tracks' seen frames by this much per frame, never above the first track's (0: "
+                                 "that alone)"),
     boolField<&C::one_view_unsure>("one_view_unsure", true,
                                    "a frame below lost_similarity in which one camera alone sees the object (its "
                                    "view's mean similarity at least found_similarity) is unsure, not unseen"),
@@ -714,9 +715,12 @@ Support FilterEngine::judge(double evidence, double contrast, bool background_me
     return Support::LikeBackground;
   if (evidence < config_.found_similarity)
     return Support::Unsure;
-  // Found again only by what scores as the object did: a look-alike of lower evidence is not it.
+  // Found again only by what scores as the object did in its last track's seen frames (hold_reference_, as it
+  // was when that track ended): a look-alike of lower evidence is not it. Not what it scored on the first frame
+  // after the box, just learned there: a textured ball scoring 0.94-0.95 up to an occluder and 0.85-0.88 after
+  // it (another side turned to the camera) was not found again in 25 frames in view.
   if (state_ != TrackState::Tracking && track_reference_ >= 0.0 &&
-      evidence < track_reference_ - config_.reacquire_margin)
+      evidence < hold_reference_ - config_.reacquire_margin)
     return Support::Unsure;
   // ... and kept by what scores near it: far below is unsure (unsure_frames of those in a row lose the track).
   if (state_ == TrackState::Tracking && hold_reference_ >= 0.0 && evidence < hold_reference_ - config_.hold_margin)
@@ -1195,9 +1199,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
   updateTrackState(support, result);
   if (track_reference_ < 0.0 && support == Support::Seen && state_ == TrackState::Tracking)
     track_reference_ = hold_reference_ = result.evidence;
-  if (state_ != TrackState::Tracking)
-    hold_reference_ = track_reference_;
-  else if (support == Support::Seen && hold_reference_ >= 0.0)
+  if (state_ == TrackState::Tracking && support == Support::Seen && hold_reference_ >= 0.0)
     hold_reference_ =
         std::min(track_reference_, hold_reference_ + config_.hold_follow * (result.evidence - hold_reference_));
   if (support == Support::Seen && state_ == TrackState::Tracking)
