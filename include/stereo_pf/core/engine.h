@@ -79,7 +79,8 @@ struct EngineConfig
   /// found_similarity, but below the object itself, is not taken for it while it is hidden. Held to the first
   /// frame's evidence instead (learned there, hence inflated), the shipped occlusion scene took up to 16 frames
   /// to be found again (Position3D, seeds 1-10; now 5) and the drawn dev set's hidden spans were followed by a
-  /// re-acquisition in 9 of 90 (now 15). 1: found_similarity alone.
+  /// re-acquisition in 9 of 90 (now 15; the stress page's draw: 9 of 54 either way, and one more run locked on a
+  /// distractor after an occluder). 1: found_similarity alone.
   double reacquire_margin = 0.05;
   /// While Tracking, a frame counts as seen only with evidence within this of track_reference (as hold_follow
   /// moves it) too; below it, as unsure (unsure_frames of them in a row lose the track). A track that has left
