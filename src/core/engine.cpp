@@ -155,8 +155,8 @@ const std::vector<EngineField>& engineFields()
                                       "this of the object's in its last track's seen frames (hold_follow; 1: "
                                       "found_similarity alone)"),
     doubleField<&C::hold_margin>("hold_margin", 0.0, 1.0, true,
-                                 "while tracking, seen only with evidence within this of the object's when its "
-                                 "first track began (1: off)"),
+                                 "while tracking, seen only with evidence within this of the object's in the "
+                                 "tracks' seen frames (hold_follow; 1: off)"),
     doubleField<&C::hold_follow>("hold_follow", 0.0, 1.0, true,
                                  "the measure of hold_margin and reacquire_margin follows the evidence of the "
                                  "tracks' seen frames by this much per frame, never above the first track's (0: "
