@@ -17,6 +17,7 @@
 #include "stereo_pf/core/acquisition.h"
 #include "stereo_pf/core/engine.h"
 #include "stereo_pf/core/estimators.h"
+#include "stereo_pf/core/local_search.h"
 #include "stereo_pf/sim/scene.h"
 #include "stereo_pf/plugins/colour_contour.h"
 #include "stereo_pf/plugins/colour_hsi.h"
@@ -382,6 +383,50 @@ TEST(Tracking, ABallThrownAtTheCameraIsFollowedByTheLocalSearch)
   }
   std::sort(ratios.begin(), ratios.end());
   EXPECT_GT(0.5 * (ratios[2] + ratios[3]), 1.5) << "the median seed is not 1.5 times worse without the local search";
+}
+
+TEST(LocalSearch, TheRightViewsDisparityIsWhereTheTwoViewsAgree)
+{
+  // The object was at left (300, 200), disparity 40, and has not moved. Its right image looks less like the
+  // target than a look-alike 4.5 px further left on the same row does (within the disparities searched) (another background behind it in that
+  // view): each view's own score alone takes the look-alike's disparity, 44.5; with a scorer of the two views'
+  // agreement, which peaks where the left match's pixels are, the search keeps 40.
+  using namespace stereo_pf;
+  ImageTrack track;
+  track.left = Pixel{ 300.0, 200.0 };
+  track.disparity = 40.0;
+  track.radius = 10.0;
+  const double true_right = 260.0, lookalike = 255.5;
+  auto bump = [](double x, double at, double height) { return height * std::exp(-0.5 * (x - at) * (x - at) / 4.0); };
+  const HypothesisScorer score = [&](const ImageHypotheses& hyp, Eigen::VectorXd& ll, Eigen::VectorXd& sim) {
+    for (int i = 0; i < hyp.size(); ++i)
+    {
+      const double u = hyp.u[i], v = hyp.v[i];
+      const double s = hyp.view == View::Left ?
+                           bump(u, 300.0, 1.0) * bump(v, 200.0, 1.0) :
+                           std::max(bump(u, true_right, 0.7), bump(u, lookalike, 0.9)) * bump(v, 200.0, 1.0);
+      ll[i] += 10.0 * s;
+      sim[i] += s;
+    }
+  };
+  const PairScorer agree = [&](const ImageHypotheses& left, const ImageHypotheses& right, Eigen::VectorXd& ll) {
+    ASSERT_EQ(left.size(), right.size());
+    for (int i = 0; i < right.size(); ++i)
+    {
+      EXPECT_EQ(left.view, View::Left);
+      EXPECT_FLOAT_EQ(left.v[i], right.v[i]) << "a pair lies on one row";
+      ll[i] += 10.0 * bump(left.u[i] - right.u[i], 40.0, 1.0);
+    }
+  };
+  LocalSearch search;
+  const LocalMatch alone = search.search(track, 640, 480, score);
+  ASSERT_TRUE(alone.found);
+  EXPECT_NEAR(alone.left.u - alone.right.u, 44.5, 0.5) << "each view alone: the look-alike";
+  const LocalMatch paired = search.search(track, 640, 480, score, agree);
+  ASSERT_TRUE(paired.found);
+  EXPECT_NEAR(paired.left.u, 300.0, 1.0);
+  EXPECT_NEAR(paired.left.v, 200.0, 1.0);
+  EXPECT_NEAR(paired.left.u - paired.right.u, 40.0, 0.5) << "with the views' agreement: the object";
 }
 
 namespace

@@ -286,23 +286,28 @@ int main(int argc, char** argv)
 }
 
 // With only_while_tracking (the default) the engine consults the stereo cue only in frames that follow a
-// frame in the tracking state; without it (and not refining), in every frame.
+// frame in the tracking state; without it (and not refining), in every frame. While tracking the local search
+// also asks it, over a few dozen disparities (counted apart from the particles' calls).
 namespace
 {
+constexpr int kParticles = 300;
+
 class CountingStereoMatch : public StereoMatch
 {
 public:
-  int calls = 0;
+  int calls = 0;         ///< on the particle set
+  int search_calls = 0;  ///< on the local search's disparities
   void evaluatePair(FeatureCache& cache, const ImageHypotheses& left, const ImageHypotheses& right,
                     Eigen::Ref<Eigen::VectorXd> log_likelihood, Eigen::Ref<Eigen::VectorXd> similarity) override
   {
-    ++calls;
+    ++(right.size() == kParticles ? calls : search_calls);
     StereoMatch::evaluatePair(cache, left, right, log_likelihood, similarity);
   }
 };
 
 // Frames (k) after which the engine was tracking, and the stereo cue's call count after each frame.
-void runEngine(bool only_while_tracking, std::vector<bool>& tracking_before, std::vector<int>& calls_after)
+void runEngine(bool only_while_tracking, std::vector<bool>& tracking_before, std::vector<int>& calls_after,
+               std::vector<int>* search_calls_after = nullptr)
 {
   SceneDescription scene = loadScene(std::string(SCENES_DIR) + "/pendulum_uncluttered.yaml");
   scene.frames = 20;
@@ -318,7 +323,7 @@ void runEngine(bool only_while_tracking, std::vector<bool>& tracking_before, std
   stereo->initialize("stereo", p);
   EngineConfig config;
   config.acquire = false;  // the search path: the first frame is a search from the prior
-  config.particles = 300;
+  config.particles = kParticles;
   config.seed = 3;
   FilterEngine engine(state, { colour, stereo }, config);
   bool tracking = false;
@@ -339,6 +344,8 @@ void runEngine(bool only_while_tracking, std::vector<bool>& tracking_before, std
     tracking_before.push_back(tracking);
     tracking = engine.step(frame).state == TrackState::Tracking;
     calls_after.push_back(stereo->calls);
+    if (search_calls_after)
+      search_calls_after->push_back(stereo->search_calls);
   }
 }
 }  // namespace
@@ -346,8 +353,8 @@ void runEngine(bool only_while_tracking, std::vector<bool>& tracking_before, std
 TEST(StereoMatch, EngineUsesItOnlyWhileTracking)
 {
   std::vector<bool> tracking_before;
-  std::vector<int> calls;
-  runEngine(true, tracking_before, calls);
+  std::vector<int> calls, search_calls;
+  runEngine(true, tracking_before, calls, &search_calls);
   ASSERT_EQ(calls.size(), 20u);
   ASSERT_FALSE(tracking_before[0]);  // the first frame is always a search
   EXPECT_EQ(calls[0], 0);
@@ -357,8 +364,12 @@ TEST(StereoMatch, EngineUsesItOnlyWhileTracking)
     expected += tracking_before[k] ? 1 : 0;  // one call per frame (one 3D set)
     tracked += tracking_before[k] ? 1 : 0;
     EXPECT_EQ(calls[k], expected) << "frame " << k;
+    // The local search: at most once a frame, and only while tracking.
+    const int searched = search_calls[k] - (k > 0 ? search_calls[k - 1] : 0);
+    EXPECT_LE(searched, tracking_before[k] ? 1 : 0) << "frame " << k;
   }
   EXPECT_GT(tracked, 10);  // it did track, so the cue was used
+  EXPECT_GT(search_calls.back(), 5) << "the local search's disparities were scored by the views' agreement";
 
   tracking_before.clear();
   calls.clear();

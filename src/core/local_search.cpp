@@ -8,7 +8,7 @@
 
 namespace stereo_pf
 {
-int LocalSearch::best(const HypothesisScorer& score)
+int LocalSearch::best(const HypothesisScorer& score, const PairScorer& pair)
 {
   const int n = hyp_.size();
   if (n == 0)
@@ -16,6 +16,8 @@ int LocalSearch::best(const HypothesisScorer& score)
   ll_.setZero(n);
   sim_.setZero(n);
   score(hyp_, ll_, sim_);
+  if (pair)
+    pair(left_hyp_, hyp_, ll_);
   int best = -1;
   for (int i = 0; i < n; ++i)
     if (hyp_.valid[i] && std::isfinite(ll_[i]) && (best < 0 || ll_[i] > ll_[best]))
@@ -23,7 +25,8 @@ int LocalSearch::best(const HypothesisScorer& score)
   return best;
 }
 
-LocalMatch LocalSearch::search(const ImageTrack& track, int width, int height, const HypothesisScorer& score)
+LocalMatch LocalSearch::search(const ImageTrack& track, int width, int height, const HypothesisScorer& score,
+                               const PairScorer& pair)
 {
   LocalMatch m;
   if (!(track.disparity > 0.0) || !std::isfinite(track.left.u) || !std::isfinite(track.left.v) || width < 2 ||
@@ -76,7 +79,7 @@ LocalMatch LocalSearch::search(const ImageTrack& track, int width, int height, c
 
   // Right image, the same row: the disparities the depth motion allows (twice the last change, as a bounce
   // reverses it, and a tenth of the disparity for a motion not seen yet), in steps of half a pixel or finer
-  // than 32 candidates.
+  // than 32 candidates; scored by the right view and, with `pair`, by its agreement with the left match.
   const double reach = 2.0 + 2.0 * std::fabs(track.dd) + 0.1 * pd;
   const double d_step = std::max(0.5, 2.0 * reach / 32.0);
   const int kd = static_cast<int>(std::ceil(reach / d_step));
@@ -91,7 +94,20 @@ LocalMatch LocalSearch::search(const ImageTrack& track, int width, int height, c
     disparities.push_back(d);
     add(lu - d, lv, rp * d / pd);
   }
-  b = best(score);
+  if (pair)
+  {
+    // The left view of every pair: the left match, at the size each disparity implies.
+    left_hyp_.view = View::Left;
+    left_hyp_.resize(0);
+    for (size_t j = 0; j < disparities.size(); ++j)
+    {
+      left_hyp_.u.push_back(static_cast<float>(lu));
+      left_hyp_.v.push_back(static_cast<float>(lv));
+      left_hyp_.radius.push_back(static_cast<float>(rp * disparities[j] / pd));
+      left_hyp_.valid.push_back(inside(lu, lv) ? 1 : 0);
+    }
+  }
+  b = best(score, pair);
   if (b < 0)
     return m;
   double d = disparities[b];

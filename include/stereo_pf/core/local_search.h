@@ -3,7 +3,7 @@
 // The local search (a proposal policy of the engine while tracking): where, near the image position the
 // object's last motion predicts, the evidence cues see it best at its present apparent size; first in the left
 // image on a grid scaled to the object, then along the same row of the right image over the disparities its
-// depth motion allows. A fast object (a ball thrown at the camera gains pixels of disparity every frame) is
+// depth motion allows (there also by how well the two views agree, when the engine has a cue comparing them). A fast object (a ball thrown at the camera gains pixels of disparity every frame) is
 // found where a random walk would take many frames to get to; the particles it proposes carry the velocity of
 // that jump. ROS-free.
 #pragma once
@@ -41,11 +41,17 @@ struct LocalMatch
 using HypothesisScorer =
     std::function<void(const ImageHypotheses& hyp, Eigen::VectorXd& log_likelihood, Eigen::VectorXd& similarity)>;
 
+/// Scores pairs of hypotheses (left i with right i) by how well the two views agree: adds its log-likelihoods.
+using PairScorer =
+    std::function<void(const ImageHypotheses& left, const ImageHypotheses& right, Eigen::VectorXd& log_likelihood)>;
+
 class LocalSearch
 {
 public:
-  /// Search near `track` in images of `width` x `height` px, scoring with `score`.
-  LocalMatch search(const ImageTrack& track, int width, int height, const HypothesisScorer& score);
+  /// Search near `track` in images of `width` x `height` px, scoring with `score` (and the right image's
+  /// disparities also with `pair`, when given).
+  LocalMatch search(const ImageTrack& track, int width, int height, const HypothesisScorer& score,
+                    const PairScorer& pair = PairScorer());
 
   /// Grid points per axis of the coarse left search, at most (the window grows with the motion, the spacing
   /// with it so the cost stays bounded).
@@ -53,9 +59,9 @@ public:
 
 private:
   /// Score `hyp_` and return the index of the best valid hypothesis (-1: none).
-  int best(const HypothesisScorer& score);
+  int best(const HypothesisScorer& score, const PairScorer& pair = PairScorer());
 
-  ImageHypotheses hyp_;
+  ImageHypotheses hyp_, left_hyp_;
   Eigen::VectorXd ll_, sim_;
 };
 
