@@ -164,7 +164,10 @@ TEST_F(RenderedPair, LikelihoodVariesContinuouslyBelowOnePixel)
 
 TEST_F(RenderedPair, EvaluatePairMatchesZnccAndHandlesBadHypotheses)
 {
-  auto m = makeModel(with("sigma", "0.2"));
+  // surface_depth 0: each pair is compared where its centres project (the default's shift is checked below).
+  Parameters flat = with("sigma", "0.2");
+  flat.set("surface_depth", 0.0);
+  auto m = makeModel(flat);
   const std::vector<float> ul = { kLeftU, kLeftU, kLeftU, kLeftU, kLeftU, -500.0f, kLeftU };
   const std::vector<float> ur = { kLeftU - kDisparity, kLeftU - kDisparity + 1.0f, kLeftU - kDisparity,
                                   kLeftU - kDisparity, std::numeric_limits<float>::quiet_NaN(), -540.0f,
@@ -187,6 +190,14 @@ TEST_F(RenderedPair, EvaluatePairMatchesZnccAndHandlesBadHypotheses)
     EXPECT_DOUBLE_EQ(ll[i], floor_ll) << i;
     EXPECT_DOUBLE_EQ(sim[i], 0.0) << i;
   }
+  // By default the right window is centred on the near side's image: 0.15 radii in front of the centre, so the
+  // disparity compared is d / (1 - 0.15 R / fx).
+  auto near_side = makeModel(with("sigma", "0.2"));
+  near_side->evaluatePair(cache_, l, r, ll, sim);
+  const float shifted = kLeftU - kDisparity / static_cast<float>(1.0 - 0.15 * kRadius / 525.0);
+  EXPECT_GT(kLeftU - kDisparity - shifted, 0.2f);
+  EXPECT_NEAR(ll[0], -(1.0 - m->zncc(cache_, kLeftU, shifted, kV, kRadius)) / (2.0 * 0.2 * 0.2), 1e-6);
+  EXPECT_DOUBLE_EQ(ll[4], floor_ll);
   // Wrong sizes or views are refused.
   Eigen::VectorXd short_ll(3), short_sim(3);
   EXPECT_THROW(m->evaluatePair(cache_, l, r, short_ll, short_sim), std::invalid_argument);
@@ -261,12 +272,78 @@ TEST(StereoMatch, AnOutlineTheBackgroundsInvertStillMatchesOnItsEdges)
             grey_only->zncc(cache, kLeftU, kLeftU - kDisparity, kV, kRadius));
 }
 
+// A textured ball near the cameras: what the two views match is its surface, whose near side lies up to a radius
+// in front of the centre (the texture is fixed to the surface, so its disparity is the surface's). Scanned along
+// the line of sight through the true centre, the flat comparison peaks at the near side (7.5-9.6 % of the depth
+// short, the near pole being 10.9 % short); centred on the near side's image (surface_depth 0.15) the peak moves
+// back towards the centre, by 0.9 % here. The default stays well short of the 2/3 of a radius a textured ball's
+// visible surface lies in front of its centre on average: the outline, which plain objects match by, lies at the
+// centre's depth.
+TEST(StereoMatch, ATexturedBallNearTheCamerasIsComparedOnItsNearSide)
+{
+  SceneDescription scene;
+  scene.frames = 1;
+  scene.background.type = SceneBackground::Type::Cluttered;
+  scene.background.depth = 2.0;
+  SceneSphere ball;
+  ball.radius = 0.06;
+  ball.textured = true;
+  ball.colour = cv::Vec3d(60, 140, 200);
+  ball.colour2 = cv::Vec3d(230, 230, 230);
+  ball.trajectory = Trajectory::fixed(Eigen::Vector3d(0.03, -0.02, 0.55));
+  auto state = std::make_shared<Position3D>();
+  state->initialize("state_model", Parameters());
+  auto flat = makeModel(with("surface_depth", "0"));
+  auto near_side = makeModel();
+  for (const uint64_t seed : { 1u, 2u, 3u })
+  {
+    ball.texture_seed = seed;
+    scene.objects = { ball };
+    scene.seed = seed;
+    SceneRenderer renderer(scene);
+    cv::Mat left, right;
+    renderer.render(0, left, right);
+    StereoFrame frame;
+    frame.left = left;
+    frame.right = right;
+    frame.geometry = renderer.geometry();
+    FeatureCache cache;
+    cache.reset(frame);
+    const Eigen::Vector3d truth = renderer.targetPosition(0);
+    // Depths 0.9..1.1 times the truth's, 0.1 % apart, on the ray through the true centre.
+    const int n = 201;
+    ParticleSet set;
+    set.resize(n, state->dimension(0));
+    set.states.setZero();
+    for (int i = 0; i < n; ++i)
+      set.states.row(i).head<3>() = (truth * (0.9 + 0.001 * i)).transpose();
+    ImageHypotheses l, r;
+    l.view = View::Left;
+    r.view = View::Right;
+    state->project(frame.geometry, 0, set, l);
+    state->project(frame.geometry, 0, set, r);
+    Eigen::VectorXd ll(n), sim(n);
+    double peak[2];
+    for (int k = 0; k < 2; ++k)
+    {
+      (k == 0 ? flat : near_side)->evaluatePair(cache, l, r, ll, sim);
+      Eigen::Index best;
+      ll.maxCoeff(&best);
+      peak[k] = 0.001 * static_cast<double>(best) - 0.1;  // relative depth error of the peak
+    }
+    EXPECT_LT(peak[0], -0.05) << "texture " << seed << ": the flat comparison peaks at the near side";
+    EXPECT_GT(peak[1], peak[0] + 0.005) << "texture " << seed << ": surface_depth moves it towards the centre";
+    EXPECT_LT(peak[1], 0.0) << "texture " << seed << ": but not beyond";
+  }
+}
+
 TEST(StereoMatch, ParametersAndTarget)
 {
   EXPECT_THROW(makeModel(with("rows", "0")), ParameterError);
   EXPECT_THROW(makeModel(with("sigma", "-1")), ParameterError);
   EXPECT_THROW(makeModel(with("column_step", "0")), ParameterError);
   EXPECT_THROW(makeModel(with("edges", "maybe")), ParameterError);
+  EXPECT_THROW(makeModel(with("surface_depth", "1.5")), ParameterError);
   auto m = makeModel();
   EXPECT_TRUE(m->comparesViews());
   EXPECT_TRUE(m->hasTarget());

@@ -30,6 +30,9 @@ StereoMatch::Tunables StereoMatch::readTunables() const
   t.sigma = p.getDouble("sigma", t.sigma, 0.001, 10.0, "log-likelihood -(1 - ZNCC) / (2 sigma^2)");
   t.window_scale = p.getDouble("window_scale", t.window_scale, 0.2, 3.0,
                                "compared disc, in apparent radii (> 1: includes the silhouette)");
+  t.surface_depth = p.getDouble("surface_depth", t.surface_depth, 0.0, 1.0,
+                                "object radii; the right window is centred on the image of the point this far in "
+                                "front of the centre on the left ray: what the views match is the object's near side");
   t.rows = p.getInt("rows", t.rows, 1, 41, "sample rows across the disc");
   t.column_step = p.getInt("column_step", t.column_step, 1, 20,
                            "px between samples along a row (whole pixels: one sub-pixel phase)");
@@ -263,9 +266,24 @@ void StereoMatch::evaluatePair(FeatureCache& cache, const ImageHypotheses& left,
   similarity.setZero();
   if (n == 0)
     return;
+  // The matched surface lies in front of the centre by about surface_depth radii: at depth z - k r instead of z,
+  // so its disparity is d z / (z - k r) = d / (1 - k R / fx), R the apparent radius (r / z = R / fx).
+  const ImageHypotheses* compared = &right;
+  const double k_over_fx = tunables_.surface_depth / cache.geometry().fx();
+  if (k_over_fx > 0.0)
+  {
+    near_side_ = right;
+    for (int i = 0; i < n; ++i)
+    {
+      const double shrink = 1.0 - k_over_fx * left.radius[i];
+      if (left.valid[i] && right.valid[i] && shrink > 0.5)
+        near_side_.u[i] = static_cast<float>(left.u[i] - (left.u[i] - right.u[i]) / shrink);
+    }
+    compared = &near_side_;
+  }
   cv::Point origin_left, origin_right;
-  greyRegion(cache, left, right, grey_[0], origin_left);
-  greyRegion(cache, right, left, grey_[1], origin_right);
+  greyRegion(cache, left, *compared, grey_[0], origin_left);
+  greyRegion(cache, *compared, left, grey_[1], origin_right);
   const bool edges = tunables_.edges;
   if (edges)
   {
@@ -278,7 +296,7 @@ void StereoMatch::evaluatePair(FeatureCache& cache, const ImageHypotheses& left,
     if (!left.valid[i] || !right.valid[i])
       continue;
     // Rectified: both views share the row; the radius is the left one (equal for a point model).
-    const double z = match(grey_[0], origin_left, grey_[1], origin_right, left.u[i], right.u[i], left.v[i],
+    const double z = match(grey_[0], origin_left, grey_[1], origin_right, left.u[i], compared->u[i], left.v[i],
                            left.radius[i], edges ? &edges_[0] : nullptr, edges ? &edges_[1] : nullptr);
     if (std::isnan(z))
       continue;
