@@ -253,18 +253,6 @@ std::shared_ptr<Plugin> plugin(const std::string& name)
   return m;
 }
 
-// Frame k of `renderer` with its stamp, rendered into `left`/`right` (kept alive by the caller).
-StereoFrame renderFrame(SceneRenderer& renderer, int k, cv::Mat& left, cv::Mat& right)
-{
-  renderer.render(k, left, right);
-  StereoFrame f;
-  f.left = left;
-  f.right = right;
-  f.geometry = renderer.geometry();
-  f.stamp = renderer.stamp(k);
-  return f;
-}
-
 // An engine with the target cues of the default configuration (colour, template, outline; no stereo match) on
 // `state` (Position3D when none is given).
 stereo_pf::FilterEngine defaultEngine(std::shared_ptr<stereo_pf::StateModel> state = nullptr,
@@ -303,7 +291,7 @@ TEST(Tracking, NoDepthBiasFromTheObjectsSize)
       config.seed = seed;
       FilterEngine engine = defaultEngine(plugin<Position3D>("state_model"), config);
       cv::Mat l, r;
-      auto frame = [&](int k) { return renderFrame(renderer, k, l, r); };
+      auto frame = [&](int k) { return renderer.renderFrame(k, l, r); };
       std::string error;
       ASSERT_TRUE(engine.learnTarget(frame(0), renderer.targetRoi(0), error)) << error;
       EXPECT_NEAR(engine.targetRadius(), radius, 0.03 * radius);
@@ -353,7 +341,7 @@ TEST(Tracking, ABallThrownAtTheCameraIsFollowedByTheLocalSearch)
     c.seed = seed;
     FilterEngine engine = defaultEngine(plugin<Velocity3D>("state_model"), c);
     cv::Mat l, r;
-    auto frame = [&](int k) { return renderFrame(renderer, k, l, r); };
+    auto frame = [&](int k) { return renderer.renderFrame(k, l, r); };
     std::string error;
     EXPECT_TRUE(engine.learnTarget(frame(0), renderer.targetRoi(0), error)) << error;
     double sum2 = 0.0;
@@ -388,9 +376,9 @@ TEST(Tracking, ABallThrownAtTheCameraIsFollowedByTheLocalSearch)
 TEST(LocalSearch, TheRightViewsDisparityIsWhereTheTwoViewsAgree)
 {
   // The object was at left (300, 200), disparity 40, and has not moved. Its right image looks less like the
-  // target than a look-alike 4.5 px further left on the same row does (within the disparities searched) (another background behind it in that
-  // view): each view's own score alone takes the look-alike's disparity, 44.5; with a scorer of the two views'
-  // agreement, which peaks where the left match's pixels are, the search keeps 40.
+  // target (another background behind it in that view) than a look-alike 4.5 px further left on the same row,
+  // within the disparities searched: each view's own score alone takes the look-alike's disparity, 44.5; with a
+  // scorer of the two views' agreement, which peaks where the left match's pixels are, the search keeps 40.
   using namespace stereo_pf;
   ImageTrack track;
   track.left = Pixel{ 300.0, 200.0 };
@@ -481,10 +469,10 @@ Coverage ellipsoidCoverage()
                         EngineConfig());
     cv::Mat l, r;
     std::string error;
-    EXPECT_TRUE(engine.learnTarget(renderFrame(renderer, 0, l, r), renderer.targetRoi(0), error)) << error;
+    EXPECT_TRUE(engine.learnTarget(renderer.renderFrame(0, l, r), renderer.targetRoi(0), error)) << error;
     for (int k = 0; k < d.frames; ++k)
     {
-      const FrameResult res = engine.step(renderFrame(renderer, k, l, r));
+      const FrameResult res = engine.step(renderer.renderFrame(k, l, r));
       if (res.state != TrackState::Tracking || !res.estimate.valid)
         continue;
       const Eigen::Vector3d truth = renderer.targetPosition(k);
@@ -768,12 +756,12 @@ struct TwoBalls
   {
     cv::Mat l, r;
     std::string error;
-    ASSERT_TRUE(engine.learnTarget(renderFrame(renderer, 0, l, r), renderer.targetRoi(0), error)) << error;
+    ASSERT_TRUE(engine.learnTarget(renderer.renderFrame(0, l, r), renderer.targetRoi(0), error)) << error;
     for (int k = 0; k < frames; ++k)
     {
       if (before)
         before(k);
-      const stereo_pf::FrameResult res = engine.step(renderFrame(renderer, k, l, r));
+      const stereo_pf::FrameResult res = engine.step(renderer.renderFrame(k, l, r));
       ASSERT_EQ(res.state, stereo_pf::TrackState::Tracking) << "frame " << k;
       distances.emplace_back((res.estimate.position - target).norm(), (res.estimate.position - look_alike).norm());
     }

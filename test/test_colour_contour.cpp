@@ -210,11 +210,7 @@ TEST(ColourContour, PerspectiveOutlineGivesTheTrueDepth)
 {
   SceneRenderer renderer(loadScene(std::string(SCENES_DIR) + "/pendulum_uncluttered.yaml"));
   cv::Mat left, right;
-  renderer.render(0, left, right);
-  StereoFrame f;
-  f.left = left;
-  f.right = right;
-  f.geometry = renderer.geometry();
+  const StereoFrame f = renderer.renderFrame(0, left, right);
   FeatureCache cache;
   cache.reset(f);
   const Eigen::Vector3d truth = renderer.targetPosition(0);

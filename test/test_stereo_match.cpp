@@ -302,11 +302,7 @@ TEST(StereoMatch, ATexturedBallNearTheCamerasIsComparedOnItsNearSide)
     scene.seed = seed;
     SceneRenderer renderer(scene);
     cv::Mat left, right;
-    renderer.render(0, left, right);
-    StereoFrame frame;
-    frame.left = left;
-    frame.right = right;
-    frame.geometry = renderer.geometry();
+    const StereoFrame frame = renderer.renderFrame(0, left, right);
     FeatureCache cache;
     cache.reset(frame);
     const Eigen::Vector3d truth = renderer.targetPosition(0);
@@ -407,12 +403,7 @@ void runEngine(bool only_while_tracking, std::vector<bool>& tracking_before, std
   cv::Mat left, right;
   for (int k = 0; k < renderer.frames(); ++k)
   {
-    renderer.render(k, left, right);
-    StereoFrame frame;
-    frame.left = left;
-    frame.right = right;
-    frame.stamp = renderer.stamp(k);
-    frame.geometry = renderer.geometry();
+    const StereoFrame frame = renderer.renderFrame(k, left, right);
     if (k == 0)
     {
       std::string error;

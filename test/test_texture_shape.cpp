@@ -717,11 +717,7 @@ TEST(ShapeCircle, OffAxisSphereIsMatchedWithItsPerspectiveSilhouette)
   d.objects.push_back(ball);
   SceneRenderer renderer(d);
   cv::Mat left, right;
-  renderer.render(0, left, right);
-  StereoFrame frame;
-  frame.left = left;
-  frame.right = right;
-  frame.geometry = renderer.geometry();
+  const StereoFrame frame = renderer.renderFrame(0, left, right);
   FeatureCache cache;
   cache.reset(frame);
   const Pixel centre = frame.geometry.projectSphere(ball.trajectory.position, ball.radius, View::Left);
@@ -798,11 +794,7 @@ TEST(NewScenes, ColourDistractorIsToldApartByTextureAndShape)
   ASSERT_EQ(scene.objects.size(), 2u);
   SceneRenderer renderer(scene);
   cv::Mat left, right;
-  renderer.render(scene.target_roi_frame, left, right);
-  StereoFrame frame;
-  frame.left = left;
-  frame.right = right;
-  frame.geometry = renderer.geometry();
+  StereoFrame frame = renderer.renderFrame(scene.target_roi_frame, left, right);
   FeatureCache cache;
   cache.reset(frame);
   ColourHSI colour;
@@ -855,11 +847,7 @@ TEST(NewScenes, CheckeredBallTextureStandsOutOfTheClutter)
   const SceneDescription scene = loadScene(std::string(SCENES_DIR) + "/checkered_cluttered.yaml");
   SceneRenderer renderer(scene);
   cv::Mat left, right;
-  renderer.render(scene.target_roi_frame, left, right);
-  StereoFrame frame;
-  frame.left = left;
-  frame.right = right;
-  frame.geometry = renderer.geometry();
+  StereoFrame frame = renderer.renderFrame(scene.target_roi_frame, left, right);
   FeatureCache cache;
   cache.reset(frame);
   TextureEdge texture;
@@ -950,12 +938,7 @@ TrackSummary trackScene(const std::string& scene_file, int frames, bool all_cues
   cv::Mat left, right;
   for (int k = 0; k < renderer.frames(); ++k)
   {
-    renderer.render(k, left, right);
-    StereoFrame frame;
-    frame.left = left;
-    frame.right = right;
-    frame.stamp = renderer.stamp(k);
-    frame.geometry = renderer.geometry();
+    const StereoFrame frame = renderer.renderFrame(k, left, right);
     if (k == scene.target_roi_frame)
     {
       std::string error;

@@ -1137,6 +1137,17 @@ void SceneRenderer::render(int k, cv::Mat& left_bgr, cv::Mat& right_bgr, bool wi
   renderView(k, View::Right, right_bgr, with_noise);
 }
 
+StereoFrame SceneRenderer::renderFrame(int k, cv::Mat& left_bgr, cv::Mat& right_bgr, bool with_noise)
+{
+  render(k, left_bgr, right_bgr, with_noise);
+  StereoFrame frame;
+  frame.left = left_bgr;
+  frame.right = right_bgr;
+  frame.stamp = stamp(k);
+  frame.geometry = geometry();
+  return frame;
+}
+
 void SceneRenderer::drawScene(double t, View view, cv::Mat& bgr)
 {
   const int v = static_cast<int>(view);

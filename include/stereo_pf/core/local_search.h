@@ -3,9 +3,9 @@
 // The local search (a proposal policy of the engine while tracking): where, near the image position the
 // object's last motion predicts, the evidence cues see it best at its present apparent size; first in the left
 // image on a grid scaled to the object, then along the same row of the right image over the disparities its
-// depth motion allows (there also by how well the two views agree, when the engine has a cue comparing them). A fast object (a ball thrown at the camera gains pixels of disparity every frame) is
-// found where a random walk would take many frames to get to; the particles it proposes carry the velocity of
-// that jump. ROS-free.
+// depth motion allows (there also by how well the two views agree, when the engine has a cue comparing them). A
+// fast object (a ball thrown at the camera gains pixels of disparity every frame) is found where a random walk
+// would take many frames to get to; the particles it proposes carry the velocity of that jump. ROS-free.
 #pragma once
 
 #include <functional>

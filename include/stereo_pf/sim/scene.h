@@ -16,6 +16,7 @@
 #include <opencv2/core.hpp>
 
 #include "stereo_pf/sim/scene_sensor.h"
+#include "stereo_pf/core/stereo_frame.h"
 #include "stereo_pf/core/stereo_geometry.h"
 
 namespace stereo_pf
@@ -250,6 +251,9 @@ public:
   /// (motion blur, vignetting, gains, noise, JPEG: SceneSensorModel). The per-pixel noise is added unless
   /// `with_noise` is false (useful for checking colours exactly); the other sensor effects always apply.
   void render(int k, cv::Mat& left_bgr, cv::Mat& right_bgr, bool with_noise = true);
+  /// Render frame k as render() does and return it as the tracker's input: those images (shared: keep them
+  /// alive while the frame is used), stamped stamp(k), with the pair's geometry().
+  StereoFrame renderFrame(int k, cv::Mat& left_bgr, cv::Mat& right_bgr, bool with_noise = true);
   /// Render one view of frame k.
   void renderView(int k, View view, cv::Mat& bgr, bool with_noise = true);
   /// Renders averaged over frame k's exposure: sensor.blur_samples, or when that is 0 enough that no
