@@ -203,7 +203,9 @@ TEST(MatchBox, ABoxWithNoCounterpartIsNoMatch)
   f.right = g.right;
   const BoxMatch m = matchBox(f, box);
   EXPECT_FALSE(m.ok);
-  EXPECT_FALSE(m.error.empty());
+  EXPECT_NE(m.error.find("no match in the right image"), std::string::npos) << m.error;
+  // ... saying what its best candidate would mean (the depth, how far apart the two views of it are).
+  EXPECT_NE(m.error.find(" m away, seen by the two cameras from "), std::string::npos) << m.error;
 }
 
 TEST(MatchBox, AnObjectSeenAgainstOtherSurroundingsInEachViewIsMatchedAlone)

@@ -196,6 +196,13 @@ BoxMatch matchBox(const StereoFrame& frame, const cv::Rect& box, const BoxMatchO
   {
     why << "no match in the right image along rows " << box.y << ".." << box.y + box.height - 1
         << " (best correlation " << m.score << " at disparity " << best << ", below " << o.min_score << ")";
+    // What the best candidate would mean: close up, the two cameras see the object from directions far apart.
+    const StereoGeometry& g = frame.geometry;
+    if (best > 0 && g.baseline() > 0.0)
+      why << "; there it would be " << g.fx() * g.baseline() / best << " m away, seen by the two cameras from "
+          << std::atan2(static_cast<double>(best), g.fx()) * 180.0 / M_PI
+          << " degrees apart (if it is that close, its sides and what lies behind it differ between the views: "
+             "teach it from further away)";
     BoxMatch f = failure(box, why.str());
     f.scores = m.scores;
     return f;
