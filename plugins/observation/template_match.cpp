@@ -316,7 +316,10 @@ bool TemplateMatch::targetMap(FeatureCache& cache, View view, cv::Mat& map)
         std::clamp(std::min(samples / (2.0 * hx), 200.0 / gray.cols), 5.0 / (2.0 * std::min(hx, hy)), 1.0);
     const int factor = std::max(1, static_cast<int>(std::floor(1.0 / scale + 1e-9)));
     cv::Mat small, result;
-    cv::resize(gray, small, cv::Size(gray.cols / factor, gray.rows / factor), 0, 0, cv::INTER_AREA);
+    // The columns and rows a whole number of cells cover: resized by a fractional factor (640 / 213), OpenCV
+    // weighs every sample's pixels separately, nearly three times as slowly as by the whole factor.
+    const cv::Size cells(gray.cols / factor, gray.rows / factor);
+    cv::resize(gray(cv::Rect(0, 0, cells.width * factor, cells.height * factor)), small, cells, 0, 0, cv::INTER_AREA);
     cv::Mat templ(size_, size_, CV_32F, const_cast<float*>(current_.data()));
     cv::Mat t;
     const int tw = std::max(3, static_cast<int>(std::lround(2.0 * hx / factor)));
