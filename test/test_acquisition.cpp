@@ -375,6 +375,41 @@ TEST(Tracking, ABallThrownAtTheCameraIsFollowedByTheLocalSearch)
   EXPECT_GT(0.5 * (ratios[2] + ratios[3]), 1.5) << "the median seed is not 1.5 times worse without the local search";
 }
 
+TEST(LocalSearch, AnObjectThatReversedItsMotionIsFound)
+{
+  // The object moved 40 px to the right in the last frame and now bounces back: it is 40 px to the left of where
+  // it was, 80 px from where that motion predicts (a ball at the turning point of a fast pass, 10 px in radius).
+  // It is found there, as is one that kept going, and one that went on at half again its speed.
+  using namespace stereo_pf;
+  ImageTrack track;
+  track.left = Pixel{ 300.0, 200.0 };
+  track.du = 40.0;
+  track.disparity = 40.0;
+  track.radius = 10.0;
+  LocalSearch search;
+  for (const double u : { 260.0, 340.0, 360.0 })
+  {
+    const HypothesisScorer score = [&](const ImageHypotheses& hyp, Eigen::VectorXd& ll, Eigen::VectorXd& sim) {
+      for (int i = 0; i < hyp.size(); ++i)
+      {
+        // What a window of the object's size sees: the object within a radius of its centre, then nothing.
+        const double at = hyp.view == View::Left ? u : u - 40.0;
+        const double d = std::hypot(hyp.u[i] - at, hyp.v[i] - 200.0);
+        const double s = std::max(0.0, 1.0 - d / 10.0);
+        ll[i] += 10.0 * s;
+        sim[i] += s;
+      }
+    };
+    const LocalMatch m = search.search(track, 640, 480, score);
+    ASSERT_TRUE(m.found) << "object at u = " << u;
+    // To the fine grid's spacing (m.step, 3 px here), which the right image's match inherits.
+    EXPECT_NEAR(m.left.u, u, m.step) << "object at u = " << u;
+    EXPECT_NEAR(m.left.v, 200.0, m.step) << "object at u = " << u;
+    EXPECT_NEAR(m.right.u, u - 40.0, m.step + 0.5) << "object at u = " << u;
+    EXPECT_GT(m.similarity, 0.8) << "object at u = " << u;
+  }
+}
+
 TEST(LocalSearch, TheRightViewsDisparityIsWhereTheTwoViewsAgree)
 {
   // The object was at left (300, 200), disparity 40, and has not moved. Its right image looks less like the

@@ -1,11 +1,12 @@
 // SPDX-License-Identifier: BSD-3-Clause
 // Copyright (c) 2026, stereo_pf developers
 // The local search (a proposal policy of the engine while tracking): where, near the image position the
-// object's last motion predicts, the evidence cues see it best at its present apparent size; first in the left
-// image on a grid scaled to the object, then along the same row of the right image over the disparities its
-// depth motion allows (there also by how well the two views agree, when the engine has a cue comparing them). A
-// fast object (a ball thrown at the camera gains pixels of disparity every frame) is found where a random walk
-// would take many frames to get to; the particles it proposes carry the velocity of that jump. ROS-free.
+// object's last motion predicts or that motion reversed would take it to, the evidence cues see it best at its
+// present apparent size; first in the left image on a grid scaled to the object, then along the same row of the
+// right image over the disparities its depth motion allows (there also by how well the two views agree, when
+// the engine has a cue comparing them). A fast object (a ball thrown at the camera gains pixels of disparity
+// every frame) is found where a random walk would take many frames to get to; the particles it proposes carry
+// the velocity of that jump. ROS-free.
 #pragma once
 
 #include <functional>
@@ -53,8 +54,9 @@ public:
   LocalMatch search(const ImageTrack& track, int width, int height, const HypothesisScorer& score,
                     const PairScorer& pair = PairScorer());
 
-  /// Grid points per axis of the coarse left search, at most (the window grows with the motion, the spacing
-  /// with it so the cost stays bounded).
+  /// Grid points per axis of the coarse left search over the window that reaches the prediction; the window
+  /// also reaches back as far as the motion reversed would take the object, on more points of the same spacing
+  /// (at most 1.5 times as many per axis). The spacing grows with the motion so that the cost stays bounded.
   static constexpr int kMaxGrid = 15;
 
 private:
