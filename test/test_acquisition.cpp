@@ -375,17 +375,28 @@ TEST(Tracking, ABallThrownAtTheCameraIsFollowedByTheLocalSearch)
   EXPECT_GT(0.5 * (ratios[2] + ratios[3]), 1.5) << "the median seed is not 1.5 times worse without the local search";
 }
 
+namespace
+{
+/// The local search's input for an object last seen at left (300, 200), disparity 40 px, 10 px in radius, that
+/// moved `du` px along the row in the last frame.
+stereo_pf::ImageTrack trackAt300(double du)
+{
+  stereo_pf::ImageTrack track;
+  track.left = stereo_pf::Pixel{ 300.0, 200.0 };
+  track.du = du;
+  track.disparity = 40.0;
+  track.radius = 10.0;
+  return track;
+}
+}  // namespace
+
 TEST(LocalSearch, AnObjectThatReversedItsMotionIsFound)
 {
   // The object moved 40 px to the right in the last frame and now bounces back: it is 40 px to the left of where
   // it was, 80 px from where that motion predicts (a ball at the turning point of a fast pass, 10 px in radius).
   // It is found there, as is one that kept going, and one that went on at half again its speed.
   using namespace stereo_pf;
-  ImageTrack track;
-  track.left = Pixel{ 300.0, 200.0 };
-  track.du = 40.0;
-  track.disparity = 40.0;
-  track.radius = 10.0;
+  const ImageTrack track = trackAt300(40.0);
   LocalSearch search;
   for (const double u : { 260.0, 340.0, 360.0 })
   {
@@ -417,10 +428,7 @@ TEST(LocalSearch, TheRightViewsDisparityIsWhereTheTwoViewsAgree)
   // within the disparities searched: each view's own score alone takes the look-alike's disparity, 44.5; with a
   // scorer of the two views' agreement, which peaks where the left match's pixels are, the search keeps 40.
   using namespace stereo_pf;
-  ImageTrack track;
-  track.left = Pixel{ 300.0, 200.0 };
-  track.disparity = 40.0;
-  track.radius = 10.0;
+  const ImageTrack track = trackAt300(0.0);
   const double true_right = 260.0, lookalike = 255.5;
   auto bump = [](double x, double at, double height) { return height * std::exp(-0.5 * (x - at) * (x - at) / 4.0); };
   const HypothesisScorer score = [&](const ImageHypotheses& hyp, Eigen::VectorXd& ll, Eigen::VectorXd& sim) {
