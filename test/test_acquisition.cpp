@@ -421,6 +421,41 @@ TEST(LocalSearch, AnObjectThatReversedItsMotionIsFound)
   }
 }
 
+TEST(LocalSearch, AKnownMotionBoundsTheDisparitiesSearched)
+{
+  // The object is at left (300, 200) and its right image at disparity 100, where it scores weakly (its right view
+  // against another background); a look-alike on the same row scores well at disparity 110. Still before (no
+  // motion known), a sudden depth change of a tenth of the disparity is searched: the look-alike is taken. Known
+  // to move along the row at constant depth, only a twentieth is: the object is kept.
+  using namespace stereo_pf;
+  auto bump = [](double x, double at, double height) { return height * std::exp(-0.5 * (x - at) * (x - at) / 4.0); };
+  const HypothesisScorer score = [&](const ImageHypotheses& hyp, Eigen::VectorXd& ll, Eigen::VectorXd& sim) {
+    for (int i = 0; i < hyp.size(); ++i)
+    {
+      const double u = hyp.u[i], v = hyp.v[i];
+      const double row = bump(v, 200.0, 1.0);
+      const double s = row * (hyp.view == View::Left ? bump(u, 300.0, 1.0) :
+                                                       std::max(bump(u, 200.0, 0.6), bump(u, 190.0, 0.9)));
+      ll[i] += 10.0 * s;
+      sim[i] += s;
+    }
+  };
+  LocalSearch search;
+  ImageTrack still = trackAt300(0.0);
+  still.disparity = 100.0;
+  const LocalMatch jumped = search.search(still, 640, 480, score);
+  ASSERT_TRUE(jumped.found);
+  EXPECT_NEAR(jumped.left.u - jumped.right.u, 110.0, 0.5) << "no motion known: a tenth of the disparity searched";
+  // Moving along the row by 0.5 px a frame, arriving at 300.
+  ImageTrack moving = still;
+  moving.left.u -= 0.5;
+  moving.du = 0.5;
+  const LocalMatch kept = search.search(moving, 640, 480, score);
+  ASSERT_TRUE(kept.found);
+  EXPECT_NEAR(kept.left.u, 300.0, 1.0);
+  EXPECT_NEAR(kept.left.u - kept.right.u, 100.0, 0.5) << "a known motion: a twentieth searched";
+}
+
 TEST(LocalSearch, TheRightViewsDisparityIsWhereTheTwoViewsAgree)
 {
   // The object was at left (300, 200), disparity 40, and has not moved. Its right image looks less like the

@@ -24,7 +24,7 @@ struct ImageTrack
   Pixel left;                 ///< centre in the left image, px
   double disparity = 0.0;     ///< left u - right u, px
   double radius = 0.0;        ///< apparent radius in the left image, px
-  double du = 0.0, dv = 0.0;  ///< left image motion per frame, px
+  double du = 0.0, dv = 0.0;  ///< left image motion per frame, px (du, dv and dd all 0: no motion known yet)
   double dd = 0.0;            ///< disparity change per frame, px
 };
 
