@@ -737,8 +737,14 @@ TEST(EngineTrackState, AnObjectOneCameraStillSeesIsUnsureNotUnseen)
   const std::vector<FrameResult> lost = resultsUnder(left, off, right);
   EXPECT_EQ(lost[10].support, Support::LowEvidence);
   EXPECT_EQ(lost[12].state, TrackState::Lost) << "the third low frame";
-  // Neither view seeing it (0.6 and 0.05: each below found_similarity) is unseen, as before.
-  const std::vector<FrameResult> neither = resultsUnder(std::vector<double>(12, 0.6), defaults, right);
+  // A view between the thresholds but at least midway (0.6) still sees it: unsure. Neither view seeing it (0.5
+  // and 0.05: each below midway between lost_similarity and found_similarity) is unseen, as before.
+  const double midway = 0.5 * (defaults.lost_similarity + defaults.found_similarity);
+  ASSERT_TRUE(0.6 >= midway && 0.6 < defaults.found_similarity && 0.5 < midway);
+  const std::vector<FrameResult> weak = resultsUnder(std::vector<double>(12, 0.6), defaults, right);
+  EXPECT_EQ(weak[10].support, Support::Unsure);
+  EXPECT_EQ(weak[12].state, TrackState::Tracking);
+  const std::vector<FrameResult> neither = resultsUnder(std::vector<double>(12, 0.5), defaults, right);
   EXPECT_EQ(neither[10].support, Support::LowEvidence);
   EXPECT_EQ(neither[12].state, TrackState::Lost) << "the third low frame";
 }

@@ -99,7 +99,8 @@ struct EngineConfig
   /// than unseen: the track is kept (for unsure_frames) while the object is hidden from the other camera's cues.
   /// On a real pitch the ball passed in front of a bright panel seen by the right camera only: its right-view
   /// cues fell to 0-0.3 while the left view's stayed at 0.7-0.8, and the track was lost 5 frames before the
-  /// pitch's end. false: the mean over both views alone decides.
+  /// pitch's end. A view "sees" the object when its cues' mean similarity is at least midway between
+  /// lost_similarity and found_similarity. false: the mean over both views alone decides.
   bool one_view_unsure = true;
   double respawn_fraction = 0.2;      ///< fraction of each set redrawn every frame while not Tracking
   /// While Tracking: the share of each set moved every frame to where the cues' target maps see the target
