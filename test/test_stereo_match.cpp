@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <iostream>
 #include <limits>
 #include <memory>
 #include <random>
@@ -29,7 +30,7 @@ constexpr float kDisparity = 43.37f;
 /// A shaded ball (brightness falling off towards the lower right, like a lit sphere) on a lightly textured
 /// wall, anti-aliased by 4x4 supersampling: the ball's centre is at (u, v) with sub-pixel precision.
 /// Gaussian noise of 2 grey levels per channel.
-cv::Mat renderView(float u, float v, unsigned seed)
+cv::Mat renderView(float u, float v, unsigned seed, float radius = kRadius)
 {
   std::mt19937 rng(seed);
   std::normal_distribution<double> noise(0.0, 2.0);
@@ -42,10 +43,10 @@ cv::Mat renderView(float u, float v, unsigned seed)
         for (int sx = 0; sx < 4; ++sx)
         {
           const double dx = x + (sx + 0.5) / 4.0 - 0.5 - u, dy = y + (sy + 0.5) / 4.0 - 0.5 - v;
-          if (dx * dx + dy * dy <= kRadius * kRadius)
+          if (dx * dx + dy * dy <= radius * radius)
           {
             inside += 1.0 / 16.0;
-            shade += (0.75 - 0.25 * (dx + dy) / kRadius) / 16.0;
+            shade += (0.75 - 0.25 * (dx + dy) / radius) / 16.0;
           }
         }
       // The wall: a gentle pattern fixed to the image (it is far away: no disparity to speak of).
@@ -149,6 +150,50 @@ TEST_F(RenderedPair, PeaksAtTheTrueDisparityWithSubPixelPrecision)
             << "shift " << shift << " scale " << scale << (model == m.get() ? " default" : " dense");
       }
   }
+}
+
+/// The disparity at which one hypothesis's ZNCC peaks, scanned in 0.02 px steps within 2 px of the truth.
+double peakDisparity(StereoMatch& model, FeatureCache& cache, float radius)
+{
+  double best = -2.0, best_d = 0.0;
+  for (double d = kDisparity - 2.0; d <= kDisparity + 2.0; d += 0.02)
+  {
+    const double z = model.zncc(cache, kLeftU, static_cast<float>(kLeftU - d), kV, radius);
+    if (z > best)
+    {
+      best = z;
+      best_d = d;
+    }
+  }
+  return best_d;
+}
+
+TEST(StereoMatch, ASmallBallIsSampledDenselyEnoughToMeasureItsDisparity)
+{
+  // A 4 px ball (a far one: at 10 disparity pixels, 0.25 px is 2.5 % of its depth). The former fixed sampling,
+  // two rows with a sample every third pixel, saw 6 samples of it per view; the default aims at `samples` per
+  // view, one pixel apart at this size. Over 24 noise draws the default's peak lies closer to the truth.
+  constexpr float kSmall = 4.0f;
+  Parameters sparse;
+  sparse.set("rows", 2);
+  sparse.set("column_step", 3);
+  auto dense_model = makeModel();
+  auto sparse_model = makeModel(sparse);
+  double dense_sq = 0.0, sparse_sq = 0.0;
+  constexpr int kDraws = 24;
+  for (int k = 0; k < kDraws; ++k)
+  {
+    FeatureCache cache;
+    cache.reset(makeFrame(renderView(kLeftU, kV, 100 + 2 * k, kSmall),
+                          renderView(kLeftU - kDisparity, kV, 101 + 2 * k, kSmall)));
+    dense_sq += std::pow(peakDisparity(*dense_model, cache, kSmall) - kDisparity, 2);
+    sparse_sq += std::pow(peakDisparity(*sparse_model, cache, kSmall) - kDisparity, 2);
+  }
+  const double dense_rms = std::sqrt(dense_sq / kDraws), sparse_rms = std::sqrt(sparse_sq / kDraws);
+  std::cout << "small ball: peak disparity RMS " << dense_rms << " px (default), " << sparse_rms
+            << " px (2 rows, every 3rd px)" << std::endl;
+  EXPECT_LT(dense_rms, 0.7 * sparse_rms);
+  EXPECT_LT(dense_rms, 0.15);
 }
 
 TEST_F(RenderedPair, LikelihoodVariesContinuouslyBelowOnePixel)
@@ -337,7 +382,8 @@ TEST(StereoMatch, ParametersAndTarget)
 {
   EXPECT_THROW(makeModel(with("rows", "0")), ParameterError);
   EXPECT_THROW(makeModel(with("sigma", "-1")), ParameterError);
-  EXPECT_THROW(makeModel(with("column_step", "0")), ParameterError);
+  EXPECT_THROW(makeModel(with("column_step", "-1")), ParameterError);
+  EXPECT_THROW(makeModel(with("samples", "3")), ParameterError);
   EXPECT_THROW(makeModel(with("edges", "maybe")), ParameterError);
   EXPECT_THROW(makeModel(with("surface_depth", "1.5")), ParameterError);
   auto m = makeModel();

@@ -34,8 +34,10 @@ StereoMatch::Tunables StereoMatch::readTunables() const
                                 "object radii; the right window is centred on the image of the point this far in "
                                 "front of the centre on the left ray: what the views match is the object's near side");
   t.rows = p.getInt("rows", t.rows, 1, 41, "sample rows across the disc");
-  t.column_step = p.getInt("column_step", t.column_step, 1, 20,
-                           "px between samples along a row (whole pixels: one sub-pixel phase)");
+  t.column_step = p.getInt("column_step", t.column_step, 0, 20,
+                           "px between samples along a row (whole pixels: one sub-pixel phase); 0: from samples");
+  t.samples = p.getInt("samples", t.samples, 4, 10000,
+                       "samples per view the column step aims at when column_step is 0");
   t.min_contrast = p.getDouble("min_contrast", t.min_contrast, 0.1, 100.0,
                                "grey levels; floor of each patch's standard deviation");
   t.min_radius = p.getDouble("min_radius", t.min_radius, 0.5, 100.0, "px; smaller apparent radii are clamped to it");
@@ -137,8 +139,10 @@ double StereoMatch::match(const cv::Mat& left, cv::Point left_origin, const cv::
   // Samples on `rows` rows across the disc, `column_step` whole pixels apart along each row: every sample of
   // a view shares the centre's sub-pixel phase, hence one pair of interpolation weights per view. Dense
   // along the rows because only horizontal shifts change the disparity; a few rows suffice.
-  const int step = tunables_.column_step;
   const int rows = tunables_.rows;
+  const int step = tunables_.column_step > 0 ?
+                       tunables_.column_step :
+                       std::max(1, static_cast<int>(std::lround(rows * 2.0 * half / tunables_.samples)));
   const double row_spacing = 2.0 * half / (rows + 1);
   const double half2 = half * half;
   const double xl_f = std::floor(u_left), xr_f = std::floor(u_right);
