@@ -172,7 +172,7 @@ TEST(StereoMatch, ASmallBallIsSampledDenselyEnoughToMeasureItsDisparity)
 {
   // A 4 px ball (a far one: at 10 disparity pixels, 0.25 px is 2.5 % of its depth). The former fixed sampling,
   // two rows with a sample every third pixel, saw 6 samples of it per view; the default aims at `samples` per
-  // view, one pixel apart at this size. Over 24 noise draws the default's peak lies closer to the truth.
+  // view, one pixel apart at this size (22 samples). Over 24 noise draws the default's peak lies closer to the truth.
   constexpr float kSmall = 4.0f;
   Parameters sparse;
   sparse.set("rows", 2);
