@@ -65,7 +65,7 @@ namespace stereo_pf
 /// pitches, seeds 1-60, 231 against 228 of 240 runs within 2 % of range, catch_test1 tracked to its last reference
 /// frame in 40 against 36 of 60 (four rows: 299 drawn, but catch_test1 to the end in 9 of 60). It is not the
 /// default because with it the nodelet test's rejected ~set_target lost 4 of 10 frames after settling in 3 of 5
-/// runs (a recovery jump after the bag restarts; not diagnosed).
+/// runs (the track found again after the test's frames restart from the first; not diagnosed).
 ///
 /// The cue says nothing about whether the matched thing is the target, so it is not part of the evidence
 /// (comparesViews()). It scores sets observed in both images, i.e. the 3D state models; the
@@ -74,8 +74,9 @@ namespace stereo_pf
 /// There is no target to learn: learnTarget() only checks the region, and nothing is saved.
 ///
 /// Cost per hypothesis pair: about rows * 2 * window_scale * radius / column_step samples per view (~30 for a
-/// 17 px ball with the defaults; about `samples` with column_step 0). Hypotheses without a radius (2D), with valid == 0 in either view, or with
-/// fewer than half of their samples inside both images get the log-likelihood of ZNCC = 0 and similarity 0.
+/// 17 px ball with the defaults; about `samples` with column_step 0). Hypotheses without a radius (2D), with
+/// valid == 0 in either view, or with fewer than half of their samples inside both images get the log-likelihood
+/// of ZNCC = 0 and similarity 0.
 /// Not thread-safe (scratch buffers are members).
 ///
 /// Parameters (in the plugin's namespace): sigma (0.1, 0.001..10), window_scale (1.35, 0.2..3),
