@@ -58,9 +58,10 @@ public:
     return false;
   }
   /// Optional: particle `row`, just placed by seedFromStereo where the cues see the target, is taken to have
-  /// come there from the previous estimate `from` in `dt` seconds (a jump the dynamics could not follow: a
-  /// bounce, a throw's first frames, a lock taken back from a distractor). Models with a velocity set it to
-  /// that jump so the next prediction follows it. Default: nothing.
+  /// come there from the estimate `from` in `dt` seconds: a jump the dynamics could not follow (a bounce, a
+  /// throw's first frames, a lock taken back from a distractor). `from` is the track's last estimate the evidence
+  /// saw (the previous frame's unless the object went unseen since) and `dt` the time since. Models with a
+  /// velocity set it to that jump so the next prediction follows it. Default: nothing.
   virtual void setArrival(const StateEstimate& /*from*/, double /*dt*/, int /*set*/, ParticleSet& /*particles*/,
                           int /*row*/) const
   {

@@ -105,7 +105,8 @@ struct EngineConfig
   double respawn_fraction = 0.2;      ///< fraction of each set redrawn every frame while not Tracking
   /// While Tracking: the share of each set moved every frame to where the cues' target maps see the target
   /// (the recovery search: a fast object's jump, a bounce, the real object beside a distractor), each with the
-  /// velocity of a jump from the previous estimate (StateModel::setArrival). None from the prior.
+  /// velocity of a jump from the track's last estimate the evidence saw, seen or unsure, over the time since
+  /// (StateModel::setArrival). None from the prior.
   double tracking_respawn_fraction = 0.05;
   /// The recovery search runs on every recovery_period-th frame while Tracking (1: every frame). Its target maps
   /// and the frame-wide particles it proposes cost more than the rest of a step; a wrong lock or a jump is found
@@ -350,6 +351,10 @@ private:
   bool initialised_ = false;
   double last_stamp_ = 0.0;
   StateEstimate last_estimate_;  ///< the previous frame's estimate while Tracking (invalid otherwise)
+  /// The track's last estimate the evidence saw (Seen or Unsure; invalid while not Tracking), and its stamp: where
+  /// a jump arrives from.
+  StateEstimate vouched_estimate_;
+  double vouched_stamp_ = 0.0;
   /// The last two tracking estimates' left pixels and disparities (newest first) and how many are known: the
   /// local search's image motion.
   Pixel track_left_[2];
