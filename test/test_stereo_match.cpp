@@ -123,7 +123,7 @@ TEST_F(RenderedPair, PeaksAtTheTrueDisparityWithSubPixelPrecision)
     EXPECT_LT(m->zncc(cache_, kLeftU, kLeftU - kDisparity - off, kV, kRadius), at_truth) << off;
   // Scan the disparity in 0.05 px steps: the best one is within a fraction of a pixel of the truth, also when
   // the hypothesised centre is a few pixels off in both images (the colour cue's plateau) or the radius is 5%
-  // off. One hypothesis with the default sparse sampling (two rows) sees the noise of a few edge samples
+  // off. One hypothesis with the default sampling (two rows, about 48 samples) sees the noise of a few edge samples
   // (the filter averages many); dense sampling shows the peak itself.
   Parameters dense;
   dense.set("rows", 7);
@@ -170,9 +170,9 @@ double peakDisparity(StereoMatch& model, FeatureCache& cache, float radius)
 
 TEST(StereoMatch, ASmallBallSampledBySizeHasItsDisparityMeasuredMorePrecisely)
 {
-  // A 4 px ball (a far one: at 10 disparity pixels, 0.25 px is 2.5 % of its depth). The default fixed sampling,
-  // two rows with a sample every third pixel, sees 6 samples of it per view; column_step 0 aims at `samples` per
-  // view, one pixel apart at this size (22 samples). Over 24 noise draws its peak lies closer to the truth.
+  // A 4 px ball (a far one: at 10 disparity pixels, 0.25 px is 2.5 % of its depth). A fixed sampling of two rows
+  // with a sample every third pixel sees 6 samples of it per view; column_step 0 (the default) aims at `samples`
+  // per view, one pixel apart at this size (22 samples). Over 24 noise draws its peak lies closer to the truth.
   constexpr float kSmall = 4.0f;
   Parameters sparse, dense;
   sparse.set("rows", 2);

@@ -59,28 +59,28 @@ namespace stereo_pf
 /// view, and the likelihood varies continuously with the disparity instead of in one-pixel steps. Rows are rounded:
 /// a vertical shift moves both views alike. The grey levels are converted once per frame, only over the region the
 /// hypotheses can read.
-/// The default's fixed 3 px step gives a 4 px ball 6 samples per view: its depth jitters by 2-2.5 % of range from
-/// frame to frame on far, small targets. column_step 0 with 48 samples: the drawn scenes (5 draws x 30, tracker
-/// seeds 1-3) 295 against 271 of 450 runs successful, median RMS 1.09-1.14 against 1.11-1.21 % of range; the real
-/// pitches, seeds 1-60, 231 against 228 of 240 runs within 2 % of range, catch_test1 tracked to its last reference
-/// frame in 40 against 36 of 60 (four rows: 299 drawn, but catch_test1 to the end in 9 of 60). It is not the
-/// default because with it the nodelet test's rejected ~set_target lost 4 of 10 frames after settling in 3 of 5
-/// runs (the track found again after the test's frames restart from the first; not diagnosed).
-///
+/// A fixed 3 px step (the default until column_step 0 replaced it) gives a 4 px ball 6 samples per view: its depth
+/// jitters by 2-2.5 % of range from frame to frame on far, small targets. column_step 0 with 48 samples: the drawn
+/// scenes (5 draws x 30, tracker seeds 1-3) 295 against 271 of 450 runs successful, median RMS 1.09-1.14 against
+/// 1.11-1.21 % of range; the real pitches, seeds 1-60, 231 against 228 of 240 runs within 2 % of range,
+/// catch_test1 tracked to its last reference frame in 40 against 36 of 60 (four rows: 299 drawn, but catch_test1
+/// to the end in 9 of 60). Its first try as the default made the nodelet test's rejected ~set_target lose 4 of 10
+/// frames after settling, in 3 of 5 runs: the engine's jumps then arrived from a drifted estimate (fixed there).
+
 /// The cue says nothing about whether the matched thing is the target, so it is not part of the evidence
 /// (comparesViews()). It scores sets observed in both images, i.e. the 3D state models; the
 /// stereo-constraints model's 2D sets are observed in one image each and are not scored by it (their
 /// pairing is the coupling's job). evaluate() on one view alone gives every hypothesis the same value.
 /// There is no target to learn: learnTarget() only checks the region, and nothing is saved.
 ///
-/// Cost per hypothesis pair: about rows * 2 * window_scale * radius / column_step samples per view (~30 for a
-/// 17 px ball with the defaults; about `samples` with column_step 0). Hypotheses without a radius (2D), with
+/// Cost per hypothesis pair: about `samples` per view with column_step 0 (fewer on objects under samples /
+/// (2 rows) px across), else rows * 2 * window_scale * radius / column_step (~30 for a 17 px ball, step 3). Hypotheses without a radius (2D), with
 /// valid == 0 in either view, or with fewer than half of their samples inside both images get the log-likelihood
 /// of ZNCC = 0 and similarity 0.
 /// Not thread-safe (scratch buffers are members).
 ///
 /// Parameters (in the plugin's namespace): sigma (0.1, 0.001..10), window_scale (1.35, 0.2..3),
-/// rows (2, 1..41), column_step (3 px, 0..20; 0: from samples), samples (48, 4..10000), min_contrast (4 grey
+/// rows (2, 1..41), column_step (0: from samples; 1..20 px), samples (48, 4..10000), min_contrast (4 grey
 /// levels, 0.1..100),
 /// min_radius (2 px, 0.5..100), edges (true), surface_depth (0.15 radii, 0..1), only_while_tracking (true: the
 /// engine skips the cue while searching or lost, where it would pull particles to any textured surface it can
@@ -130,7 +130,7 @@ private:
     double sigma = 0.1;
     double window_scale = 1.35;
     int rows = 2;
-    int column_step = 3;
+    int column_step = 0;
     int samples = 48;
     double min_contrast = 4.0;
     double min_radius = 2.0;
