@@ -643,18 +643,65 @@ TEST(EngineRecovery, TheRecoverySearchRunsOnEveryPeriodthFrameOfATrack)
 
 namespace
 {
-/// Velocity3D that notes where from and over what time each jumped particle is said to have arrived.
+/// Velocity3D that notes where from and over what time each jumped particle is said to have arrived, and the speed
+/// that implies.
 class ArrivalNoting : public Velocity3D
 {
 public:
   mutable std::vector<std::pair<Eigen::Vector3d, double>> arrivals;
+  mutable std::vector<double> speeds;
   void setArrival(const StateEstimate& from, double dt, int set, ParticleSet& particles, int row) const override
   {
     arrivals.emplace_back(from.position, dt);
+    speeds.push_back((particles.states.row(row).head<3>().transpose() - from.position).norm() / dt);
     Velocity3D::setArrival(from, dt, set, particles, row);
   }
 };
+
+/// The speeds the recovery search's jumps imply when the pendulum's ball, tracked for 10 frames, is shown next where
+/// it is farthest from there (the recovery search on every frame, no local search); `max_jump_speed` as given.
+std::vector<double> jumpSpeedsAfterATeleport(double max_jump_speed)
+{
+  Scene scene("pendulum_uncluttered.yaml");
+  auto state = std::make_shared<ArrivalNoting>();
+  state->initialize("state_model", Parameters());
+  EngineConfig config;
+  config.recovery_period = 1;
+  config.local_fraction = 0.0;
+  config.max_jump_speed = max_jump_speed;
+  FilterEngine engine(state, { cue<ColourHSI>("colour"), cue<ColourContour>("colour_contour") }, config);
+  std::string error;
+  EXPECT_TRUE(engine.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
+  FrameResult r;
+  for (int k = 0; k < 10; ++k)
+    r = engine.step(scene.frame(k));
+  EXPECT_EQ(r.support, Support::Seen);
+  int far = 10;
+  for (int k = 10; k < 90; ++k)
+    if ((scene.renderer().targetPosition(k) - r.estimate.position).norm() >
+        (scene.renderer().targetPosition(far) - r.estimate.position).norm())
+      far = k;
+  StereoFrame teleport = scene.frame(far);
+  teleport.stamp = scene.renderer().stamp(10);
+  state->speeds.clear();
+  engine.step(teleport);
+  return state->speeds;
+}
 }  // namespace
+
+TEST(EngineRecovery, NoJumpIsFasterThanMaxJumpSpeed)
+{
+  // Without the bound the recovery search jumps to the ball wherever it went; with it, only as far as the speed
+  // allows in one frame (a look-alike on the wall behind a ball is out of reach).
+  const std::vector<double> free = jumpSpeedsAfterATeleport(0.0);
+  ASSERT_FALSE(free.empty());
+  const double fastest = *std::max_element(free.begin(), free.end());
+  std::printf("fastest jump to the teleported ball without the bound: %.1f m/s\n", fastest);
+  ASSERT_GT(fastest, 4.0);
+  for (const double speed : jumpSpeedsAfterATeleport(2.0))
+    EXPECT_LE(speed, 2.0 + 1e-6);
+  EXPECT_EQ(EngineConfig().max_jump_speed, 40.0);
+}
 
 TEST(EngineRecovery, AJumpAfterUnseenFramesArrivesFromWhereTheObjectWasLastSeen)
 {

@@ -116,6 +116,9 @@ struct EngineConfig
   /// rather than moved as the dynamics say. Small: a look-alike elsewhere takes the track only when it explains
   /// the images much better, or consistently over frames.
   double jump_weight = 0.05;
+  /// m/s: no recovery jump goes farther from the track's last estimate the evidence saw than this speed allows in
+  /// the time since (0: no bound). The fastest an object the tracker follows moves: Velocity3D's max_speed.
+  double max_jump_speed = 40.0;
   /// While Tracking: the share of each set moved every frame around where the local search (LocalSearch) finds
   /// the object near the position its last image motion predicts, at its present apparent size (what lets a
   /// fast or approaching object be followed), with the same prior weight and arrival velocity as the recovery
@@ -273,6 +276,8 @@ private:
   /// Draw `count` stereo pairs where the cues' target maps agree (MapProposals); `near`: while tracking, the
   /// estimate whose disparity bounds the pairs' (within a factor kDisparityReach).
   void prepareProposals(const StereoGeometry& geometry, int count, const StateEstimate* near);
+  /// Drop the prepared proposals farther from `from` than max_jump_speed allows in `since` seconds.
+  void dropFasterJumps(const StereoGeometry& geometry, const StateEstimate& from, double since);
   static constexpr double kDisparityReach = 1.5;
   /// While tracking: run the local search near the last estimates' image track and append `count` pairs around
   /// its match to the proposals (none when the evidence cues score its best match below lost_similarity);
