@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <memory>
 #include <string>
 #include <unistd.h>
 #include <vector>
@@ -528,6 +529,19 @@ int main(int argc, char** argv)
 
 namespace
 {
+/// An engine with `state`, the colour histogram and its outline, and `config`, that learned the pendulum's ball from
+/// its box in frame 0 and tracked frames 0-9; `last` is frame 9's result.
+std::unique_ptr<FilterEngine> trackingTheFirstTenFrames(Scene& scene, const std::shared_ptr<StateModel>& state,
+                                                        const EngineConfig& config, FrameResult& last)
+{
+  auto engine = std::make_unique<FilterEngine>(state, defaultCues(), config);
+  std::string error;
+  EXPECT_TRUE(engine->learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
+  for (int k = 0; k < 10; ++k)
+    last = engine->step(scene.frame(k));
+  return engine;
+}
+
 /// Position3D that, when asked, puts every particle at one wrong place: a lock planted on the background.
 class Planting : public Position3D
 {
@@ -557,12 +571,9 @@ int framesToLeaveAPlantedLock(bool searches, bool& lost)
     config.tracking_respawn_fraction = 0.0;
     config.local_fraction = 0.0;
   }
-  FilterEngine engine(state, { cue<ColourHSI>("colour"), cue<ColourContour>("colour_contour") }, config);
-  std::string error;
-  EXPECT_TRUE(engine.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
   FrameResult r;
-  for (int k = 0; k < 10; ++k)
-    r = engine.step(scene.frame(k));
+  std::unique_ptr<FilterEngine> tracking = trackingTheFirstTenFrames(scene, state, config, r);
+  FilterEngine& engine = *tracking;
   EXPECT_EQ(r.state, TrackState::Tracking);
   state->plant = true;
   state->at = scene.renderer().targetPosition(10) + Eigen::Vector3d(0.25, 0.0, 0.0);
@@ -669,12 +680,8 @@ std::vector<double> jumpSpeedsAfterATeleport(double max_jump_speed)
   config.recovery_period = 1;
   config.local_fraction = 0.0;
   config.max_jump_speed = max_jump_speed;
-  FilterEngine engine(state, { cue<ColourHSI>("colour"), cue<ColourContour>("colour_contour") }, config);
-  std::string error;
-  EXPECT_TRUE(engine.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
   FrameResult r;
-  for (int k = 0; k < 10; ++k)
-    r = engine.step(scene.frame(k));
+  std::unique_ptr<FilterEngine> engine = trackingTheFirstTenFrames(scene, state, config, r);
   EXPECT_EQ(r.support, Support::Seen);
   int far = 10;
   for (int k = 10; k < 90; ++k)
@@ -684,7 +691,7 @@ std::vector<double> jumpSpeedsAfterATeleport(double max_jump_speed)
   StereoFrame teleport = scene.frame(far);
   teleport.stamp = scene.renderer().stamp(10);
   state->speeds.clear();
-  engine.step(teleport);
+  engine->step(teleport);
   return state->speeds;
 }
 }  // namespace
@@ -715,12 +722,9 @@ TEST(EngineRecovery, AJumpAfterUnseenFramesArrivesFromWhereTheObjectWasLastSeen)
   state->initialize("state_model", Parameters());
   const EngineConfig config;
   ASSERT_EQ(config.lost_frames, 3);
-  FilterEngine engine(state, { cue<ColourHSI>("colour"), cue<ColourContour>("colour_contour") }, config);
-  std::string error;
-  ASSERT_TRUE(engine.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
   FrameResult seen;
-  for (int k = 0; k < 10; ++k)
-    seen = engine.step(scene.frame(k));
+  std::unique_ptr<FilterEngine> tracking = trackingTheFirstTenFrames(scene, state, config, seen);
+  FilterEngine& engine = *tracking;
   ASSERT_EQ(seen.state, TrackState::Tracking);
   ASSERT_EQ(seen.support, Support::Seen);
   ASSERT_TRUE(seen.estimate.valid);
