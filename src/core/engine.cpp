@@ -1117,7 +1117,8 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     // frames 0-39 then 0, 1, 0, 1, 2, ...: a track settled after the jump was lost again within 10 frames at 2 of
     // 40 tracker seeds, at none with this (stereo column_step 0; drawn scenes, 5 draws x 30 at seeds 1-3, 296
     // against 295 of 450 successful; real pitches at seeds 1-60, 231 of 240 within 2 % of range either way).
-    const StateEstimate* from = tracking ? (vouched_estimate_.valid ? &vouched_estimate_ : &last_estimate_) : nullptr;
+    const StateEstimate* from =
+        tracking ? (vouched_estimate_.valid ? &vouched_estimate_ : &last_estimate_) : nullptr;
     const double since = vouched_estimate_.valid && frame.stamp > vouched_stamp_ ? frame.stamp - vouched_stamp_ : dt;
     int respawn_count = static_cast<int>(std::lround(fraction * config_.particles));
     prepareProposals(geometry, static_cast<int>(std::lround(share * respawn_count)), tracking ? &last_estimate_ : nullptr);

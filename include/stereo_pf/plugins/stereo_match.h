@@ -66,17 +66,17 @@ namespace stereo_pf
 /// catch_test1 tracked to its last reference frame in 40 against 36 of 60 (four rows: 299 drawn, but catch_test1
 /// to the end in 9 of 60). Its first try as the default made the nodelet test's rejected ~set_target lose 4 of 10
 /// frames after settling, in 3 of 5 runs: the engine's jumps then arrived from a drifted estimate (fixed there).
-
+///
 /// The cue says nothing about whether the matched thing is the target, so it is not part of the evidence
 /// (comparesViews()). It scores sets observed in both images, i.e. the 3D state models; the
 /// stereo-constraints model's 2D sets are observed in one image each and are not scored by it (their
 /// pairing is the coupling's job). evaluate() on one view alone gives every hypothesis the same value.
 /// There is no target to learn: learnTarget() only checks the region, and nothing is saved.
 ///
-/// Cost per hypothesis pair: about `samples` per view with column_step 0 (fewer on objects under samples /
-/// (2 rows) px across), else rows * 2 * window_scale * radius / column_step (~30 for a 17 px ball, step 3). Hypotheses without a radius (2D), with
-/// valid == 0 in either view, or with fewer than half of their samples inside both images get the log-likelihood
-/// of ZNCC = 0 and similarity 0.
+/// Cost per hypothesis pair: about `samples` per view with column_step 0 (fewer on objects under samples / (2 rows)
+/// px across), else rows * 2 * window_scale * radius / column_step (~30 for a 17 px ball, step 3). Hypotheses
+/// without a radius (2D), with valid == 0 in either view, or with fewer than half of their samples inside both
+/// images get the log-likelihood of ZNCC = 0 and similarity 0.
 /// Not thread-safe (scratch buffers are members).
 ///
 /// Parameters (in the plugin's namespace): sigma (0.1, 0.001..10), window_scale (1.35, 0.2..3),
