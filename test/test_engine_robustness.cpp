@@ -751,6 +751,84 @@ TEST(EngineRecovery, AJumpAfterUnseenFramesArrivesFromWhereTheObjectWasLastSeen)
 
 namespace
 {
+/// The pendulum tracked for 10 frames, then held still (frame 9 for 5 more frames), then blank frames until the track
+/// is lost, then `shown` (a frame of the scene) again and again, the stamps going on at the scene's frame period:
+/// the frames until the ball is tracked again (-1: not within 20); `distance` gets how far it is from where the track
+/// last saw it.
+int framesToFindTheBallAgain(const EngineConfig& config, int shown, double& distance)
+{
+  Scene scene("pendulum_uncluttered.yaml");
+  FrameResult r;
+  std::unique_ptr<FilterEngine> tracking = trackingTheFirstTenFrames(scene, position3D(), config, r);
+  FilterEngine& engine = *tracking;
+  const double period = scene.renderer().stamp(1) - scene.renderer().stamp(0);
+  double stamp = scene.renderer().stamp(9);
+  for (int k = 0; k < 5; ++k)
+  {
+    StereoFrame still = scene.frame(9);
+    still.stamp = stamp += period;
+    r = engine.step(still);
+  }
+  EXPECT_EQ(r.support, Support::Seen);
+  distance = (scene.renderer().targetPosition(shown) - r.estimate.position).norm();
+  for (int k = 0; k < 10 && r.state == TrackState::Tracking; ++k)
+  {
+    StereoFrame blank = scene.frame(10);
+    blank.left = cv::Mat(blank.left.size(), blank.left.type(), cv::Scalar::all(128));
+    blank.right = cv::Mat(blank.right.size(), blank.right.type(), cv::Scalar::all(128));
+    blank.stamp = stamp += period;
+    r = engine.step(blank);
+  }
+  EXPECT_EQ(r.state, TrackState::Lost);
+  for (int k = 1; k <= 20; ++k)
+  {
+    StereoFrame back = scene.frame(shown);
+    back.stamp = stamp += period;
+    r = engine.step(back);
+    if (r.state == TrackState::Tracking)
+    {
+      EXPECT_LT((r.estimate.position - scene.renderer().targetPosition(shown)).norm(), 0.03);
+      return k;
+    }
+  }
+  return -1;
+}
+}  // namespace
+
+TEST(EngineRecovery, ALostTrackIsFoundAgainOnlyWithinReachOfWhereItWasLastSeen)
+{
+  // The ball, still, then hidden, shows again where the swing is farthest from where the track last saw it: a
+  // look-alike for all the engine can tell. With a floor of 0.2 m/s (and twice the still ball's speed, about 0) that
+  // place stays out of reach for the 20 frames; without the bound the ball is found there; where the track last saw
+  // it, it is found with the bound too.
+  EngineConfig config;
+  config.reacquire_min_speed = 0.2;
+  Scene scene("pendulum_uncluttered.yaml");
+  int far = 10;
+  for (int k = 10; k < 90; ++k)
+    if ((scene.renderer().targetPosition(k) - scene.renderer().targetPosition(9)).norm() >
+        (scene.renderer().targetPosition(far) - scene.renderer().targetPosition(9)).norm())
+      far = k;
+  double distance = 0.0;
+  const int bounded = framesToFindTheBallAgain(config, far, distance);
+  const double period = scene.renderer().stamp(1) - scene.renderer().stamp(0);
+  ASSERT_GT(distance, 2.0 * config.reacquire_min_speed * 35 * period) << "the far place must stay out of reach";
+  EXPECT_EQ(bounded, -1) << "found " << distance << " m away within " << bounded << " frames";
+  config.reacquire_min_speed = 0.0;
+  const int free = framesToFindTheBallAgain(config, far, distance);
+  std::printf("ball %.2f m from where it was last seen: found again after %d frames without the bound, %d with\n",
+              distance, free, bounded);
+  EXPECT_GE(free, 1);
+  EXPECT_LE(free, 10);
+  config.reacquire_min_speed = 0.2;
+  const int near = framesToFindTheBallAgain(config, 9, distance);
+  EXPECT_LT(distance, 0.02);
+  EXPECT_GE(near, 1);
+  EXPECT_LE(near, 10);
+}
+
+namespace
+{
 /// The colour histogram whose similarity, once `script` is set, is script[k] at every particle of frame k (the
 /// background places beside the best particle score 0), so the engine's evidence follows the script.
 class Scripted : public ColourHSI

@@ -177,6 +177,11 @@ const std::vector<EngineField>& engineFields()
                                        "share of the redrawn particles proposed where the cues see the target"),
     doubleField<&C::jump_weight>("jump_weight", 0.0, 1.0, false,
                                  "prior weight of a recovery particle relative to a predicted one"),
+    doubleField<&C::reacquire_speed_factor>("reacquire_speed_factor", 0.0, 1e3, true,
+                                            "finding a lost target again: within (this x its last seen speed + "
+                                            "reacquire_min_speed) x the time since of where it was last seen"),
+    doubleField<&C::reacquire_min_speed>("reacquire_min_speed", 0.0, 1e6, true,
+                                         "m/s; see reacquire_speed_factor (0 either: no bound)"),
     doubleField<&C::max_jump_speed>("max_jump_speed", 0.0, 1e6, false,
                                     "m/s; no recovery jump farther from where the track last saw the object than "
                                     "this speed allows in the time since (0: no bound)"),
@@ -294,6 +299,7 @@ void FilterEngine::applyPending()
     initialised_ = false;
     state_ = TrackState::Searching;
     seen_count_ = unseen_count_ = unsure_count_ = state_frames_ = 0;
+    seen_estimate_ = StateEstimate{};  // a restart searches afresh, not near the last track
   }
   // Last, and with the flag cleared first: a plugin that rejects its new parameters throws out of step()
   // once, not on every later frame, and the restart above is not lost.
@@ -540,6 +546,7 @@ bool FilterEngine::loadTarget(const std::string& path, std::string& error)
         !photometry.empty() && photometry["brightness"].isReal() ? static_cast<double>(photometry["brightness"]) : -1.0;
     target_brightness_ = std::isfinite(brightness) && brightness > 0.0 ? brightness : -1.0;
     track_reference_ = hold_reference_ = -1.0;
+    seen_estimate_ = StateEstimate{};
     return true;
   }
   catch (const cv::Exception& e)
@@ -751,7 +758,27 @@ void FilterEngine::rememberTrack()
   }
 }
 
-Support FilterEngine::judge(double evidence, double contrast, bool background_measured, bool one_view) const
+bool FilterEngine::withinReacquireReach(const StateEstimate& estimate, double stamp) const
+{
+  // An object hidden by an occluder comes out about where its motion took it; a look-alike that takes a lost track
+  // is mostly elsewhere. On the drawn dev set (5 draws x 30 scenes, seeds 1-3) 37 of the 70 re-acquisitions went
+  // to something more than 5 % of the range from the object; from where the track last saw the object they implied
+  // 4.2 m/s (median) against 0.4 m/s for the 33 right ones (at most 2.1 m/s for 90 % of them). With this bound (2
+  // times the last seen speed plus 1 m/s): 30 wrong and 32 right, 309 against 305 of 450 runs successful (none
+  // lost), wrong-object locks in 23 runs / 24 episodes against 25 / 29; real pitches at seeds 1-60: every run as
+  // before. With reacquire_margin 0.1 beside the bound (then measured with a looser speed: the larger of the
+  // velocity and the way between estimates), 61 hidden spans instead of 42 were followed by the object within 15
+  // frames, but locks rose to 37 runs / 52 episodes and successes fell to 290.
+  if (!seen_estimate_.valid || !estimate.valid || !(config_.reacquire_speed_factor > 0.0) ||
+      !(config_.reacquire_min_speed > 0.0))
+    return true;
+  const double since = std::max(0.0, stamp - seen_stamp_);
+  const double speed = config_.reacquire_speed_factor * seen_speed_ + config_.reacquire_min_speed;
+  return (estimate.position - seen_estimate_.position).norm() <= speed * since;
+}
+
+Support FilterEngine::judge(double evidence, double contrast, bool background_measured, bool one_view,
+                            bool in_reach) const
 {
   if (evidence < config_.lost_similarity && !(one_view && config_.one_view_unsure))
     return Support::LowEvidence;
@@ -766,6 +793,9 @@ Support FilterEngine::judge(double evidence, double contrast, bool background_me
   // it (another side turned to the camera) was not found again in 25 frames in view.
   if (state_ != TrackState::Tracking && track_reference_ >= 0.0 &&
       evidence < hold_reference_ - config_.reacquire_margin)
+    return Support::Unsure;
+  // ... and only within reach of where that track last saw it: a look-alike elsewhere is not it.
+  if (state_ != TrackState::Tracking && track_reference_ >= 0.0 && !in_reach)
     return Support::Unsure;
   // ... and kept by what scores near it: far below is unsure (unsure_frames of those in a row lose the track).
   if (state_ == TrackState::Tracking && hold_reference_ >= 0.0 && evidence < hold_reference_ - config_.hold_margin)
@@ -1095,7 +1125,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     seedAroundAcquisition(geometry);
     acquired_.pending = false;
     state_ = TrackState::Tracking;
-    vouched_estimate_ = StateEstimate{};
+    vouched_estimate_ = seen_estimate_ = StateEstimate{};
     seen_count_ = unseen_count_ = unsure_count_ = state_frames_ = 0;
   }
   else if (!initialised_)
@@ -1253,7 +1283,8 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     if (coarse.valid)
       result.estimate.covariance += coarse.covariance;
   }
-  Support support = judge(result.evidence, contrast, background_measured, one_view_seen);
+  Support support = judge(result.evidence, contrast, background_measured, one_view_seen,
+                          withinReacquireReach(result.estimate, frame.stamp));
   if (escaped || (result.estimate.valid && !volume_.containsDepth(result.estimate.position.z())))
   {
     support = Support::OutsideView;
@@ -1273,6 +1304,19 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     vouched_estimate_ = StateEstimate{};
   else if ((support == Support::Seen || support == Support::Unsure) && result.estimate.valid)
   {
+    if (support == Support::Seen)
+    {
+      // Its speed: the state's velocity where it has one; for a model without (its estimate's velocity is zero:
+      // Position3D, StereoConstraints) the way from the previous estimate the evidence saw over the time since.
+      seen_speed_ = result.estimate.velocity.norm();
+      const bool previous = vouched_estimate_.valid && frame.stamp > vouched_stamp_;
+      if (!(seen_speed_ > 0.0))
+        seen_speed_ = previous ? (result.estimate.position - vouched_estimate_.position).norm() /
+                                     (frame.stamp - vouched_stamp_) :
+                                 0.0;
+      seen_estimate_ = result.estimate;
+      seen_stamp_ = frame.stamp;
+    }
     vouched_estimate_ = result.estimate;
     vouched_stamp_ = frame.stamp;
   }

@@ -39,8 +39,9 @@ std::string toString(TrackState state);
 enum class Support
 {
   Seen,            ///< evidence >= found_similarity and above the background by background_margin; while not
-                   ///< tracking, also within reacquire_margin of the last track's evidence, while tracking
-                   ///< within hold_margin of it (as it follows the track's seen frames: hold_follow)
+                   ///< tracking, also within reacquire_margin of the last track's evidence and within reach of
+                   ///< where it last saw the object (reacquire_speed_factor), while tracking within hold_margin
+                   ///< of it (as it follows the track's seen frames: hold_follow)
   Unsure,          ///< between the thresholds: neither counts towards nor breaks a run of seen or unseen frames
   LowEvidence,     ///< evidence < lost_similarity (and no view alone sees the object: one_view_unsure)
   LikeBackground,  ///< background locations score as well as the best particle (within background_margin)
@@ -82,6 +83,13 @@ struct EngineConfig
   /// re-acquisition in 9 of 90 (now 15; the stress page's draw: 9 of 54 either way, and one more run locked on a
   /// distractor after an occluder). 1: found_similarity alone.
   double reacquire_margin = 0.05;
+  /// Once the target has been tracked, finding it again also needs the estimate within reach of where the track
+  /// last saw the object: (reacquire_speed_factor times the speed it had there, plus reacquire_min_speed) times the
+  /// time since. The speed is the state's velocity, or for a state without one the way from the track's previous
+  /// estimate. An object hidden by an occluder comes out about where its motion took it; a look-alike that took
+  /// the lost track is mostly elsewhere. 0 (either): no bound.
+  double reacquire_speed_factor = 2.0;
+  double reacquire_min_speed = 1.0;  ///< m/s
   /// While Tracking, a frame counts as seen only with evidence within this of track_reference (as hold_follow
   /// moves it) too; below it, as unsure (unsure_frames of them in a row lose the track). A track that has left
   /// the object for something scoring well above found_similarity but well below the object (a patch of its
@@ -297,7 +305,10 @@ private:
   /// was learned at is taken from this frame when there is none yet (a target file without it).
   void compensateGain();
   /// Classify the frame's evidence (Support) against the thresholds and the background.
-  Support judge(double evidence, double background, bool background_measured, bool one_view) const;
+  Support judge(double evidence, double background, bool background_measured, bool one_view, bool in_reach) const;
+  /// Whether `estimate`, found while not Tracking at `stamp`, lies within reach of where the last track saw the
+  /// object (reacquire_speed_factor, reacquire_min_speed); true when there is no such place or no bound.
+  bool withinReacquireReach(const StateEstimate& estimate, double stamp) const;
   /// Track state machine; a loss to the background or the volume re-initialises the sets.
   void updateTrackState(Support support, FrameResult& result);
   /// Give the particles of set `s` whose hypotheses leave the viewing volume zero weight (log-weight -inf);
@@ -360,6 +371,11 @@ private:
   /// a jump arrives from.
   StateEstimate vouched_estimate_;
   double vouched_stamp_ = 0.0;
+  /// The last estimate of a Tracking frame whose support was Seen, and its stamp: kept while the track is lost, it
+  /// bounds where the object can be found again (withinReacquireReach). Invalid before the first track of a target.
+  StateEstimate seen_estimate_;
+  double seen_stamp_ = 0.0;
+  double seen_speed_ = 0.0;  ///< m/s, the object's speed there
   /// The last two tracking estimates' left pixels and disparities (newest first) and how many are known: the
   /// local search's image motion.
   Pixel track_left_[2];
