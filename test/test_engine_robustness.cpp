@@ -710,6 +710,18 @@ TEST(EngineRecovery, NoJumpIsFasterThanMaxJumpSpeed)
   EXPECT_EQ(EngineConfig().max_jump_speed, 40.0);
 }
 
+namespace
+{
+/// Frame k of `scene` with both views a uniform grey: nothing of the object is seen.
+StereoFrame blankFrame(Scene& scene, int k)
+{
+  StereoFrame blank = scene.frame(k);
+  blank.left = cv::Mat(blank.left.size(), blank.left.type(), cv::Scalar::all(128));
+  blank.right = cv::Mat(blank.right.size(), blank.right.type(), cv::Scalar::all(128));
+  return blank;
+}
+}  // namespace
+
 TEST(EngineRecovery, AJumpAfterUnseenFramesArrivesFromWhereTheObjectWasLastSeen)
 {
   // The pendulum tracked for 10 frames; then two blank frames (the track is kept, unseen: lost_frames is 3) over
@@ -730,10 +742,7 @@ TEST(EngineRecovery, AJumpAfterUnseenFramesArrivesFromWhereTheObjectWasLastSeen)
   ASSERT_TRUE(seen.estimate.valid);
   for (int k = 10; k < 12; ++k)
   {
-    StereoFrame blank = scene.frame(k);
-    blank.left = cv::Mat(blank.left.size(), blank.left.type(), cv::Scalar::all(128));
-    blank.right = cv::Mat(blank.right.size(), blank.right.type(), cv::Scalar::all(128));
-    const FrameResult r = engine.step(blank);
+    const FrameResult r = engine.step(blankFrame(scene, k));
     ASSERT_EQ(r.state, TrackState::Tracking) << "frame " << k;
     ASSERT_EQ(r.support, Support::LowEvidence) << "frame " << k;
   }
@@ -754,8 +763,8 @@ namespace
 /// The pendulum tracked for 10 frames, then held still (frame 9 for 5 more frames), then blank frames until the track
 /// is lost, then `shown` (a frame of the scene) again and again, the stamps going on at the scene's frame period:
 /// the frames until the ball is tracked again (-1: not within 20); `distance` gets how far it is from where the track
-/// last saw it.
-int framesToFindTheBallAgain(const EngineConfig& config, int shown, double& distance)
+/// last saw it. `replayed`: the stamps start again from the scene's first when the ball is shown (a bag played again).
+int framesToFindTheBallAgain(const EngineConfig& config, int shown, double& distance, bool replayed = false)
 {
   Scene scene("pendulum_uncluttered.yaml");
   FrameResult r;
@@ -773,13 +782,13 @@ int framesToFindTheBallAgain(const EngineConfig& config, int shown, double& dist
   distance = (scene.renderer().targetPosition(shown) - r.estimate.position).norm();
   for (int k = 0; k < 10 && r.state == TrackState::Tracking; ++k)
   {
-    StereoFrame blank = scene.frame(10);
-    blank.left = cv::Mat(blank.left.size(), blank.left.type(), cv::Scalar::all(128));
-    blank.right = cv::Mat(blank.right.size(), blank.right.type(), cv::Scalar::all(128));
+    StereoFrame blank = blankFrame(scene, 10);
     blank.stamp = stamp += period;
     r = engine.step(blank);
   }
   EXPECT_EQ(r.state, TrackState::Lost);
+  if (replayed)
+    stamp = scene.renderer().stamp(0) - period;
   for (int k = 1; k <= 20; ++k)
   {
     StereoFrame back = scene.frame(shown);
@@ -825,6 +834,11 @@ TEST(EngineRecovery, ALostTrackIsFoundAgainOnlyWithinReachOfWhereItWasLastSeen)
   EXPECT_LT(distance, 0.02);
   EXPECT_GE(near, 1);
   EXPECT_LE(near, 10);
+  // Stamps that start again (a bag played again) before the ball is back: the time since would be negative, the
+  // reach none for as long as the replay lasts; the last place is not held against it then.
+  const int replayed = framesToFindTheBallAgain(config, far, distance, true);
+  EXPECT_GE(replayed, 1);
+  EXPECT_LE(replayed, 10);
 }
 
 namespace

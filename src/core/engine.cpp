@@ -772,7 +772,11 @@ bool FilterEngine::withinReacquireReach(const StateEstimate& estimate, double st
   if (!seen_estimate_.valid || !estimate.valid || !(config_.reacquire_speed_factor > 0.0) ||
       !(config_.reacquire_min_speed > 0.0))
     return true;
-  const double since = std::max(0.0, stamp - seen_stamp_);
+  // Time gone back (a bag played again) or standing still: the reach would be none, for as long as that lasts,
+  // and the object never found again. The last place says nothing then.
+  if (!(stamp > seen_stamp_))
+    return true;
+  const double since = stamp - seen_stamp_;
   const double speed = config_.reacquire_speed_factor * seen_speed_ + config_.reacquire_min_speed;
   return (estimate.position - seen_estimate_.position).norm() <= speed * since;
 }

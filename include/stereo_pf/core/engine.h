@@ -307,7 +307,8 @@ private:
   /// Classify the frame's evidence (Support) against the thresholds and the background.
   Support judge(double evidence, double background, bool background_measured, bool one_view, bool in_reach) const;
   /// Whether `estimate`, found while not Tracking at `stamp`, lies within reach of where the last track saw the
-  /// object (reacquire_speed_factor, reacquire_min_speed); true when there is no such place or no bound.
+  /// object (reacquire_speed_factor, reacquire_min_speed); true when there is no such place, no bound, or `stamp`
+  /// is not after that place's (stamps gone back: a bag played again).
   bool withinReacquireReach(const StateEstimate& estimate, double stamp) const;
   /// Track state machine; a loss to the background or the volume re-initialises the sets.
   void updateTrackState(Support support, FrameResult& result);
