@@ -138,6 +138,10 @@ def main():
                       "tracking from good frame %d" % (resumed_at + 1) if resumed_at is not None else "NOT RESUMED",
                       stereo_feed.percentile(errors_cm, 0.5)), flush=True)
             if resumed_at is None:
+                # What the tracker said about each of those frames: the reason is in the states.
+                print("  after the burst, per good frame (state/support error cm): " + "; ".join(
+                    "%s/%s %s" % ((feed.status_of(s) or ("-", "-")) + ("%.1f" % (100 * e) if e is not None else "-",))
+                    for s, e in zip(resume_stamps[:RESUME_WITHIN], errors[:RESUME_WITHIN])), flush=True)
                 failures.append("cycle %d: no %d consecutive estimates within %.0f cm in the first %d good frames "
                                 "after the bad-only burst" % (cycle + 1, RESUME_RUN, RESUME_CM, RESUME_WITHIN))
             if not tracker.alive():

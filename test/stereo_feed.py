@@ -174,7 +174,8 @@ class Feed:
             rospy.Subscriber("/diagnostics", DiagnosticArray, self._on_diag, queue_size=20),
             rospy.Subscriber("/rosout_agg", Log, self._on_log, queue_size=200),
         ]
-        self.last_stamp = rospy.Time(0)
+        self.last_stamp = rospy.Time(0)   # the last fresh stamp handed out
+        self.last_sent = rospy.Time(0)    # the stamp the last set's left image went out with
 
     # --- incoming --------------------------------------------------------------------------------------
     def _on_target(self, msg):
@@ -226,9 +227,10 @@ class Feed:
 
     def publish(self, msgs, truth=None, offsets=None):
         """Publish a set {left, right, left_info, right_info} with one fresh stamp; `offsets` (seconds) shift
-        single messages' stamps, or "repeat" gives every message the previous set's stamp."""
+        single messages' stamps, or "repeat" gives every message the stamp the previous set's left image went out
+        with (after a set stamped back, that stamp: a repeat on the wire, not the fresh stamp it was shifted from)."""
         if offsets == "repeat":
-            stamp, offsets = self.last_stamp, None
+            stamp, offsets = self.last_sent, None
         else:
             stamp = self.next_stamp()
         out = {}
@@ -243,6 +245,7 @@ class Feed:
                 self.truth_by_stamp[stamp.to_nsec()] = truth
         for key in ("left_info", "right_info", "left", "right"):
             self.pubs[key].publish(out[key])
+        self.last_sent = out["left"].header.stamp
         return stamp
 
     def publish_frame(self, k):

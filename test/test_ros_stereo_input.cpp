@@ -465,6 +465,40 @@ TEST(TrackerOutputs, MarkersCarryTheParticlesColouredByWeight)
   EXPECT_EQ(cloud->header.frame_id, "cam");
 }
 
+TEST(StereoInput, StampOrderDropsLateAndRepeatedFramesAndRestartsWhenTimeStaysBack)
+{
+  using V = StampOrder::Verdict;
+  StampOrder order(3);
+  std::string why;
+  EXPECT_EQ(order.check(10.0, why), V::Accept);  // the first frame, whatever its stamp
+  EXPECT_EQ(order.check(10.1, why), V::Accept);
+  EXPECT_EQ(order.check(9.6, why), V::Drop);  // late
+  EXPECT_NE(why.find("0.500 s before the last frame tracked"), std::string::npos) << why;
+  EXPECT_EQ(order.check(10.1, why), V::Drop);  // repeated
+  EXPECT_NE(why.find("repeated"), std::string::npos) << why;
+  EXPECT_EQ(order.check(10.2, why), V::Accept);  // a newer frame: the run of stale ones is over
+  EXPECT_EQ(order.check(9.0, why), V::Drop);
+  EXPECT_EQ(order.check(10.2, why), V::Drop);
+  EXPECT_EQ(order.check(10.3, why), V::Accept);
+  // A bag played again: its first frames are dropped, the third is taken and restarts the track.
+  EXPECT_EQ(order.check(1.0, why), V::Drop);
+  EXPECT_EQ(order.check(1.1, why), V::Drop);
+  EXPECT_EQ(order.check(1.2, why), V::Restart);
+  EXPECT_NE(why.find("went back 9.100 s"), std::string::npos) << why;
+  EXPECT_EQ(order.check(1.3, why), V::Accept);  // and then runs on from there
+  EXPECT_EQ(order.check(1.2, why), V::Drop);
+  // A camera stamping every frame alike loses two frames, then every frame is tracked: never a stall.
+  StampOrder still(3);
+  EXPECT_EQ(still.check(0.0, why), V::Accept);
+  EXPECT_EQ(still.check(0.0, why), V::Drop);
+  EXPECT_EQ(still.check(0.0, why), V::Drop);
+  for (int i = 0; i < 5; ++i)
+    EXPECT_EQ(still.check(0.0, why), V::Accept) << i;
+  // clear(): the next frame is taken whatever its stamp.
+  order.clear();
+  EXPECT_EQ(order.check(0.5, why), V::Accept);
+}
+
 TEST(TrackerOutputs, TrailStartsAfreshOnTimeJumpsGapsAndLoss)
 {
   EstimateTrail trail(90, 1.0);

@@ -126,10 +126,12 @@ public:
     return false;
   }
 
-  /// Publish a (possibly modified) frame with a fresh, increasing stamp; returns the stamp.
-  ros::Time publish(BagFrame f)
+  /// Publish a (possibly modified) frame with a fresh, increasing stamp, or with `at` when it is given; returns
+  /// the stamp.
+  ros::Time publish(BagFrame f, const ros::Time& at = ros::Time())
   {
-    const ros::Time stamp(2000.0 + (count_++) / 30.0);
+    const ros::Time fresh(2000.0 + (count_++) / 30.0);
+    const ros::Time stamp = at.isZero() ? fresh : at;
     f.left.header.stamp = f.right.header.stamp = f.left_info.header.stamp = f.right_info.header.stamp = stamp;
     left_info_pub_.publish(f.left_info);
     right_info_pub_.publish(f.right_info);
@@ -151,10 +153,12 @@ public:
     right_pub_.publish(f.right);
   }
 
-  /// Publish and wait for ~status with the same stamp; false when none came within `timeout` (a dropped frame).
-  bool stepStatus(const BagFrame& f, stereo_pf::TrackStatus& status, double timeout = 3.0)
+  /// Publish (stamped `at` when given, else afresh) and wait for ~status with the same stamp; false when none came
+  /// within `timeout` (a dropped frame).
+  bool stepStatus(const BagFrame& f, stereo_pf::TrackStatus& status, double timeout = 3.0,
+                  const ros::Time& at = ros::Time())
   {
-    const ros::Time stamp = publish(f);
+    const ros::Time stamp = publish(f, at);
     std::unique_lock<std::mutex> lock(mutex_);
     const bool got = cv_.wait_for(lock, std::chrono::duration<double>(timeout),
                                   [&] { return statuses_.count(stamp) > 0; });
@@ -249,6 +253,22 @@ public:
   }
 
   uint64_t published() const { return count_; }
+
+  /// The diagnostics' counter `key` once it is at least `value`; its latest value when that takes over `timeout`.
+  uint64_t counterReaching(const std::string& key, uint64_t value, double timeout = 5.0)
+  {
+    std::unique_lock<std::mutex> lock(mutex_);
+    cv_.wait_for(lock, std::chrono::duration<double>(timeout),
+                 [&] { return diag_.count(key) && std::stoull(diag_[key]) >= value; });
+    return diag_.count(key) ? std::stoull(diag_[key]) : 0;
+  }
+
+  /// Forget the ~status of `stamp` (to see whether another frame with that stamp gets one).
+  void forgetStatus(const ros::Time& stamp)
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    statuses_.erase(stamp);
+  }
 
 private:
   void onTarget(const geometry_msgs::PointStampedConstPtr& msg)
@@ -912,6 +932,57 @@ TEST(Tracker, ASkewedFrameIsCountedOnce)
     EXPECT_EQ(h.counter("unpaired stereo sets", complete), unpaired + 2);
     EXPECT_EQ(h.counter("dropped: out of sync", complete), out_of_sync + 1);
   }
+}
+
+// Frames are tracked in the order of their stamps. A late frame (stamped before the last one tracked) and a
+// repeated one show the pendulum half a swing away: both are dropped and counted, and the track goes on where the
+// object is. Stamps that go back and stay back (the bag played again, 100 s earlier) are taken from the third such
+// frame on: the track starts afresh there and finds the object again.
+TEST(Tracker, LateFramesAreDroppedAndTimeGoneBackRestarts)
+{
+  Harness& h = *harness;
+  geometry_msgs::Point p;
+  size_t k = settleAt(10);
+  ASSERT_TRUE(h.step(h.frames()[k], p)) << "not tracking before the test";
+  const ros::Time tracked = h.lastStamp();
+  const uint64_t before = h.counter("dropped: out of order", 0);
+  const size_t away = (k + h.frames().size() / 2) % h.frames().size();
+  ASSERT_GT(distance(h.frames()[away].truth, h.frames()[k].truth), 0.2) << "the test needs a frame far from k";
+  stereo_pf::TrackStatus status;
+  // (0.5 ms off the stamps of 30 Hz: no earlier frame had this one.)
+  EXPECT_FALSE(h.stepStatus(h.frames()[away], status, 1.0, tracked - ros::Duration(0.5005))) << "a late frame tracked";
+  h.forgetStatus(tracked);
+  EXPECT_FALSE(h.stepStatus(h.frames()[away], status, 1.0, tracked)) << "a repeated frame tracked";
+  for (int i = 1; i <= 5; ++i)
+  {
+    ASSERT_TRUE(h.stepStatus(h.frames()[k + i], status)) << "no ~status after the late frames";
+    EXPECT_EQ(status.state, stereo_pf::TrackStatus::TRACKING);
+    ASSERT_TRUE(h.targetOf(h.lastStamp(), p));
+    EXPECT_LT(distance(p, h.frames()[k + i].truth), 0.05) << "the track moved after the late frames";
+  }
+  EXPECT_EQ(h.counterReaching("dropped: out of order", before + 2), before + 2);
+
+  // The bag again from its first frame, stamped 100 s before the last frame tracked.
+  const ros::Time back = h.lastStamp() - ros::Duration(100.0005);
+  int answered = 0, good = 0;
+  for (size_t j = 0; j < 40; ++j)
+  {
+    const bool got = h.stepStatus(h.frames()[j], status, j < 2 ? 1.0 : 3.0, back + ros::Duration(j / 30.0));
+    answered += got ? 1 : 0;
+    if (j < 2)
+      EXPECT_FALSE(got) << "frame " << j << " of the stamps gone back was tracked";
+    else if (j == 2)
+    {
+      EXPECT_TRUE(got) << "the stamps gone back were not taken after three frames";
+      EXPECT_EQ(status.state, stereo_pf::TrackStatus::SEARCHING) << "the track did not start afresh";
+    }
+    else if (j >= 20 && got && status.estimate_valid && h.targetOf(h.lastStamp(), p) &&
+             distance(p, h.frames()[j].truth) < 0.05)
+      ++good;
+  }
+  EXPECT_EQ(answered, 38);
+  EXPECT_GE(good, 18) << "not tracked again after the stamps went back";
+  EXPECT_EQ(h.counterReaching("dropped: out of order", before + 4), before + 4);
 }
 
 // ~publish_when_lost (the node test sets it): while not tracking, ~target repeats the last tracked position,

@@ -110,6 +110,21 @@ void FramePipeline::processFrame(const FrameMessages& set)
     return;
   }
   first_untargeted_ = ros::WallTime();
+  std::string late;
+  switch (stamp_order_.check(frame.stamp, late))
+  {
+    case StampOrder::Verdict::Drop:
+      status_.drop(DropReason::OutOfOrder, late);
+      return;
+    case StampOrder::Verdict::Restart:
+      ROS_WARN_THROTTLE_NAMED(2.0, name_, "%s", late.c_str());
+      host_.engine().reset();
+      trail_.clear();
+      last_tracked_.reset();
+      break;
+    case StampOrder::Verdict::Accept:
+      break;
+  }
   FrameResult result;
   if (!step(frame, result))
     return;

@@ -81,6 +81,7 @@ private:
 
   StereoInput stereo_input_;
   StereoInput source_input_;                   ///< assembles a target request's own frame (own buffers)
+  StampOrder stamp_order_;                     ///< late and repeated frames are dropped; time gone back restarts
   std::optional<StateEstimate> last_tracked_;  ///< for ~publish_when_lost
   std::set<std::string> said_notes_;           ///< calibration notes already warned about
   ros::WallTime first_untargeted_;             ///< first frame without a target (zero: has one)

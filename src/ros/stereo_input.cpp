@@ -27,10 +27,50 @@ const char* toString(DropReason reason)
       return "processing error";
     case DropReason::Overload:
       return "overload";
+    case DropReason::OutOfOrder:
+      return "out of order";
     case DropReason::Count:
       break;
   }
   return "unknown";
+}
+
+StampOrder::Verdict StampOrder::check(double stamp, std::string& why)
+{
+  if (!last_valid_ || stamp > last_)
+  {
+    last_ = stamp;
+    last_valid_ = true;
+    stale_ = 0;
+    return Verdict::Accept;
+  }
+  char text[300];
+  const double back = last_ - stamp;
+  if (++stale_ < stale_run_)
+  {
+    if (back > 0.0)
+      std::snprintf(text, sizeof(text),
+                    "stamped %.3f s before the last frame tracked (late; if the stamps went back, the track starts "
+                    "afresh at the new time when %d frames in a row are stamped so)",
+                    back, stale_run_);
+    else
+      std::snprintf(text, sizeof(text),
+                    "stamped as the last frame tracked (repeated; when %d frames in a row are stamped alike, they are "
+                    "tracked)",
+                    stale_run_);
+    why = text;
+    return Verdict::Drop;
+  }
+  last_ = stamp;
+  if (!(back > 0.0))
+    return Verdict::Accept;  // every frame stamped alike: tracked (the engine takes the nominal period)
+  stale_ = 0;
+  std::snprintf(text, sizeof(text),
+                "the stamps went back %.3f s and stayed there for %d frames (a bag played again?): the track starts "
+                "afresh; the target is kept",
+                back, stale_run_);
+  why = text;
+  return Verdict::Restart;
 }
 
 namespace

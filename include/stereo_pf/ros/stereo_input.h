@@ -28,6 +28,7 @@ enum class DropReason : int
   NoTarget,         ///< nothing to track yet (no target learned or loaded)
   ProcessingError,  ///< the engine threw
   Overload,         ///< replaced by a newer frame before the tracker was free to take it
+  OutOfOrder,       ///< stamped at or before the last frame tracked (StampOrder)
   Count
 };
 /// Short label of a reason, e.g. "bad image" (the diagnostics key).
@@ -70,6 +71,35 @@ private:
   std::shared_ptr<const void> keep_[2];  ///< what the converted (unrectified) images point into
   cv::Mat converted_[2];                 ///< BGR/mono view of each message
   cv::Mat rectified_[2];                 ///< rectification output buffers, reused across frames
+};
+
+/// Frames are tracked in the order of their stamps. One stamped at or before the last frame tracked is late (held
+/// up on the way) or repeated (published twice) and is dropped: tracked, it would move the object back in time and
+/// carry the track off. Time that stays behind (a bag played again, a simulated clock restarted) is taken at the
+/// `stale_run`-th such frame in a row: the track then starts afresh, as it does for a new target. A camera that
+/// stamps every frame alike (a driver without a clock) loses stale_run - 1 frames, then every frame is tracked:
+/// never a stall.
+class StampOrder
+{
+public:
+  enum class Verdict
+  {
+    Accept,   ///< newer than the last frame tracked (or taken, after stale_run stale frames, at the same stamp)
+    Drop,     ///< at or before the last frame tracked: late or repeated; `why` says so
+    Restart,  ///< the time went back and stayed there: track it, afresh
+  };
+  explicit StampOrder(int stale_run = 3) : stale_run_(stale_run) {}
+  /// The verdict on a frame stamped `stamp` (seconds); a frame accepted or restarted is the new last one. On Drop
+  /// and Restart `why` says what was seen.
+  Verdict check(double stamp, std::string& why);
+  /// Forget the last stamp (the next frame is accepted whatever its stamp).
+  void clear() { last_valid_ = false, stale_ = 0; }
+
+private:
+  int stale_run_;
+  double last_ = 0.0;
+  bool last_valid_ = false;
+  int stale_ = 0;  ///< stale frames in a row
 };
 
 /// Empty when `msg` is internally consistent (non-empty, step >= width * pixel size, data.size() >=
