@@ -4,6 +4,7 @@
 // predict -> project -> observe -> couple -> normalise -> estimate -> resample.
 #pragma once
 
+#include <array>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -310,6 +311,11 @@ private:
   /// object (reacquire_speed_factor, reacquire_min_speed); true when there is no such place, no bound, or `stamp`
   /// is not after that place's (stamps gone back: a bag played again).
   bool withinReacquireReach(const StateEstimate& estimate, double stamp) const;
+  /// Note the interval `dt` since the last frame and return the interval to predict over: while tracking, at most
+  /// lost_frames + 0.5 frame periods (framePeriod).
+  double predictionInterval(double dt);
+  /// The camera's frame period: the median of the last intervals (nominal_dt until three are known).
+  double framePeriod() const;
   /// Track state machine; a loss to the background or the volume re-initialises the sets.
   void updateTrackState(Support support, FrameResult& result);
   /// Give the particles of set `s` whose hypotheses leave the viewing volume zero weight (log-weight -inf);
@@ -367,6 +373,11 @@ private:
   std::vector<std::vector<ImageHypotheses>> hypotheses_;
   bool initialised_ = false;
   double last_stamp_ = 0.0;
+  /// The last intervals between increasing stamps (a ring; interval_count_ of them known): the camera's period.
+  static constexpr int kFrameIntervals = 9;
+  std::array<double, kFrameIntervals> frame_intervals_{};
+  int interval_next_ = 0;
+  int interval_count_ = 0;
   StateEstimate last_estimate_;  ///< the previous frame's estimate while Tracking (invalid otherwise)
   /// The track's last estimate the evidence saw (Seen or Unsure; invalid while not Tracking), and its stamp: where
   /// a jump arrives from.
