@@ -32,7 +32,7 @@ import stereo_feed  # noqa: E402
 
 BEGIN, END = "<!-- bad-input table -->", "<!-- end of bad-input table -->"
 COUNTERS = ("dropped: bad image", "dropped: size mismatch", "dropped: bad camera_info", "dropped: out of sync",
-            "dropped: processing error", "dropped: no target", "unpaired stereo sets")
+            "dropped: out of order", "dropped: processing error", "dropped: no target", "unpaired stereo sets")
 
 
 def cell(text):

@@ -14,7 +14,8 @@ Checks (exit status 1 and a FAIL line for each that does not hold):
   - the manager process is alive at the end and answered the last good frames (no crash, no hang);
   - after every bad-only burst tracking resumes: within 30 good frames, 10 consecutive estimates within 5 cm
     of the ground truth of their frame;
-  - the bad frames are counted: bad image, size mismatch and bad camera_info drops and unpaired sets all rise;
+  - the bad frames are counted: bad image, size mismatch, bad camera_info and out of order drops and unpaired sets
+    all rise;
   - the manager's resident memory grows less than --rss-limit MB from the end of the first cycle (by then every
     kind of bad input has been seen once) to the end.
 Prints ~target rate and latency (publish -> ~target received here) for the first and the last cycle, and the
@@ -155,7 +156,8 @@ def main():
                 failures.append("the tracker's manager is gone (crash)")
         elif good_stamps and not any(feed.answered(s) for s in good_stamps[-10:]):
             failures.append("no ~target for the last 10 good frames (hung?)")
-        for key in ("dropped: bad image", "dropped: size mismatch", "dropped: bad camera_info", "unpaired stereo sets"):
+        for key in ("dropped: bad image", "dropped: size mismatch", "dropped: bad camera_info", "dropped: out of order",
+                    "unpaired stereo sets"):
             if int(diag.get(key, "0")) <= 0:
                 failures.append("diagnostics '%s' is %s after %d bad frames" % (key, diag.get(key, "missing"),
                                                                                  bad_index))
@@ -175,11 +177,11 @@ def main():
                       stereo_feed.percentile(lat, 0.95), stereo_feed.percentile(lat, 1.0)))
         print("manager RSS (s: MB): " + ", ".join("%.0f: %.1f" % (t, m) for t, m in rss))
         print("RSS growth after the first cycle: %+.1f MB (limit %.1f)" % (growth, args.rss_limit))
-        print("diagnostics: %s; dropped %s (bad image %s, size mismatch %s, bad camera_info %s, out of sync %s), "
-              "unpaired %s, processing median %s ms, latency median %s ms; last drop: %s" % (
+        print("diagnostics: %s; dropped %s (bad image %s, size mismatch %s, bad camera_info %s, out of sync %s, "
+              "out of order %s), unpaired %s, processing median %s ms, latency median %s ms; last drop: %s" % (
                   message, diag.get("dropped frames"), diag.get("dropped: bad image"),
                   diag.get("dropped: size mismatch"), diag.get("dropped: bad camera_info"),
-                  diag.get("dropped: out of sync"), diag.get("unpaired stereo sets"),
+                  diag.get("dropped: out of sync"), diag.get("dropped: out of order"), diag.get("unpaired stereo sets"),
                   diag.get("processing time median (ms)"), diag.get("latency from arrival median (ms)"),
                   diag.get("last drop")))
     except Exception as e:  # a failure to start is a failure, with the reason
