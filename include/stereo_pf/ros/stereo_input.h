@@ -84,7 +84,7 @@ class StampOrder
 public:
   enum class Verdict
   {
-    Accept,   ///< newer than the last frame tracked (or taken, after stale_run stale frames, at the same stamp)
+    Accept,   ///< newer than the last frame tracked (or, from the stale_run-th stale frame in a row, at its stamp)
     Drop,     ///< at or before the last frame tracked: late or repeated; `why` says so
     Restart,  ///< the time went back and stayed there: track it, afresh
   };
@@ -92,8 +92,6 @@ public:
   /// The verdict on a frame stamped `stamp` (seconds); a frame accepted or restarted is the new last one. On Drop
   /// and Restart `why` says what was seen.
   Verdict check(double stamp, std::string& why);
-  /// Forget the last stamp (the next frame is accepted whatever its stamp).
-  void clear() { last_valid_ = false, stale_ = 0; }
 
 private:
   int stale_run_;
