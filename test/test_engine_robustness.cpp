@@ -16,6 +16,8 @@
 #include <vector>
 
 #include "stereo_pf/core/engine.h"
+#include "stereo_pf/core/feature_cache.h"
+#include "stereo_pf/core/map_proposals.h"
 #include "stereo_pf/sim/scene.h"
 #include "stereo_pf/core/viewing_volume.h"
 #include "stereo_pf/plugins/colour_contour.h"
@@ -839,6 +841,95 @@ TEST(EngineRecovery, ALostTrackIsFoundAgainOnlyWithinReachOfWhereItWasLastSeen)
   const int replayed = framesToFindTheBallAgain(config, far, distance, true);
   EXPECT_GE(replayed, 1);
   EXPECT_LE(replayed, 10);
+}
+
+namespace
+{
+/// A ball (2 cm at 2 m: 5 px in radius) standing still among `lookalikes` balls of its colour and size spread over
+/// the view, each at least 0.6 m from it (scenes/occlusion.yaml's camera, light and backdrop, without its board).
+SceneDescription ballAmongLookalikes(int lookalikes)
+{
+  SceneDescription d = loadScene(std::string(SCENES_DIR) + "/occlusion.yaml");
+  d.frames = 1;
+  d.occluders.clear();
+  SceneSphere ball = d.objects[0];
+  ball.draw_string = false;
+  ball.radius = 0.02;
+  ball.trajectory = Trajectory::fixed(Eigen::Vector3d(0.1, 0.05, 2.0));
+  d.objects = { ball };
+  cv::RNG rng(7);
+  while (static_cast<int>(d.objects.size()) <= lookalikes)
+  {
+    const double z = rng.uniform(1.8, 3.0);
+    const Eigen::Vector3d p(rng.uniform(-0.45, 0.45) * z * 640 / 525, rng.uniform(-0.4, 0.4) * z * 480 / 525, z);
+    if ((p - ball.trajectory.position).norm() < 0.6)
+      continue;
+    SceneSphere other = ball;
+    other.name = "lookalike" + std::to_string(d.objects.size());
+    other.trajectory = Trajectory::fixed(p);
+    d.objects.push_back(other);
+  }
+  return d;
+}
+}  // namespace
+
+TEST(MapProposals, ASearchForALostObjectDrawsOnlyWithinReachOfWhereItWasLastSeen)
+{
+  // The colour histogram learned from the ball sees it and its 12 look-alikes alike. Over the whole view few of the
+  // pairs land on the ball; searching for the object a track lost, every pair lies where the object can be by now
+  // (its left pixel on the image of the reach, its disparity among those of the reach's depths, both to a 4 px
+  // cell), and most of them on the ball.
+  Scene scene(ballAmongLookalikes(12));
+  const StereoFrame frame = scene.frame(0);
+  const StereoGeometry& g = frame.geometry;
+  FeatureCache cache;
+  cache.reset(frame);
+  auto colour = cue<ColourHSI>("colour");
+  std::string error;
+  ASSERT_TRUE(colour->learnTarget(cache, View::Left, scene.renderer().targetRoi(0), error)) << error;
+  const std::vector<std::shared_ptr<ObservationModel>> models{ colour };
+  const Eigen::Vector3d ball = scene.renderer().targetPosition(0);
+  const double reach = 0.3;
+  // On the ball: the left pixel on its image, the disparity its own, both to a cell.
+  const Pixel image = g.projectLeft(ball);
+  const double radius = g.fx() * 0.02 / ball.z(), disparity = g.disparity(ball.z());
+  auto onBall = [&](const std::vector<std::pair<Pixel, Pixel>>& pairs) {
+    int on = 0;
+    for (const auto& pair : pairs)
+      on += std::hypot(pair.first.u - image.u, pair.first.v - image.v) < radius + 4.0 &&
+            std::abs(pair.first.u - pair.second.u - disparity) < 4.0;
+    return on;
+  };
+  MapProposals proposals;
+  MapProposals::Bounds bounds;
+  Rng rng(1);
+  std::vector<std::pair<Pixel, Pixel>> everywhere, within;
+  proposals.draw(cache, models, { 1.0 }, g, 400, bounds, rng, everywhere);
+  bounds.last_seen = &ball;
+  bounds.reach_radius = reach;
+  proposals.draw(cache, models, { 1.0 }, g, 400, bounds, rng, within);
+  ASSERT_GT(everywhere.size(), 300u);
+  ASSERT_GT(within.size(), 300u);
+  std::printf("pairs on the ball: %d of %zu over the whole view, %d of %zu within reach\n", onBall(everywhere),
+              everywhere.size(), onBall(within), within.size());
+  EXPECT_LT(onBall(everywhere), 0.5 * everywhere.size());
+  EXPECT_GT(onBall(within), 0.7 * within.size());
+  // The image of the reach: the sphere's extreme rays and depths.
+  const double z_near = ball.z() - reach, z_far = ball.z() + reach;
+  const double u_min = g.fx() * (ball.x() - reach) / z_near + g.cx();
+  const double u_max = g.fx() * (ball.x() + reach) / z_near + g.cx();
+  const double v_min = g.fy() * (ball.y() - reach) / z_near + g.cy();
+  const double v_max = g.fy() * (ball.y() + reach) / z_near + g.cy();
+  for (const auto& pair : within)
+  {
+    EXPECT_GT(pair.first.u, u_min - 4.0);
+    EXPECT_LT(pair.first.u, u_max + 4.0);
+    EXPECT_GT(pair.first.v, v_min - 4.0);
+    EXPECT_LT(pair.first.v, v_max + 4.0);
+    const double d = pair.first.u - pair.second.u;
+    EXPECT_GT(d, g.disparity(z_far) - 4.0);
+    EXPECT_LT(d, g.disparity(z_near) + 4.0);
+  }
 }
 
 TEST(EngineRecovery, ATrackIsNotPredictedAcrossAGapOfDroppedFrames)

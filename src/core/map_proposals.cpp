@@ -53,20 +53,6 @@ void MapProposals::draw(FeatureCache& cache, const std::vector<std::shared_ptr<O
   if (!have)
     return;
   const int cols = small_left_.cols, rows = small_left_.rows;
-  cdf_.resize(static_cast<size_t>(cols) * rows);
-  double total = 0.0;
-  for (int y = 0; y < rows; ++y)
-  {
-    const uint8_t* row = small_left_.ptr<uint8_t>(y);
-    for (int x = 0; x < cols; ++x)
-    {
-      const double w = static_cast<double>(row[x]) * row[x];  // squared: favour strong matches
-      total += w;
-      cdf_[static_cast<size_t>(y) * cols + x] = total;
-    }
-  }
-  if (total <= 0.0)
-    return;
   // The partner lies on the same row, at a positive disparity up to that of the nearest depth; while tracking
   // (`near`), within a factor `reach` of the estimate's: the maps see the target at about its present size,
   // which a far smaller or larger disparity would contradict (a tiny far hypothesis matches anything).
@@ -77,6 +63,53 @@ void MapProposals::draw(FeatureCache& cache, const std::vector<std::shared_ptr<O
     min_disparity = std::max(min_disparity, d / bounds.reach);
     max_disparity = std::min(max_disparity, d * bounds.reach);
   }
+  // Searching for a lost object: the cells whose pixels' rays can pass within the reach (the left image's bounding
+  // box of the sphere's image), and the disparities of its depths.
+  cv::Rect allowed(0, 0, cols, rows);
+  if (bounds.last_seen && std::isfinite(bounds.reach_radius) && bounds.reach_radius >= 0.0)
+  {
+    const Eigen::Vector3d& c = *bounds.last_seen;
+    const double r = bounds.reach_radius;
+    const double z_near = std::max(bounds.min_depth, c.z() - r), z_far = c.z() + r;
+    if (!(z_far > z_near))
+      return;
+    max_disparity = std::min(max_disparity, g.disparity(z_near));
+    min_disparity = std::max(min_disparity, g.disparity(z_far));
+    // Over a box of depths, x / z is extreme at a corner: the nearest or farthest depth with the extreme x (or y).
+    const auto extent = [&](double centre, double f, double principal, double& lo, double& hi) {
+      lo = HUGE_VAL;
+      hi = -HUGE_VAL;
+      for (const double z : { z_near, z_far })
+        for (const double side : { -r, r })
+        {
+          const double px = f * (centre + side) / z + principal;
+          lo = std::min(lo, px);
+          hi = std::max(hi, px);
+        }
+    };
+    double u0, u1, v0, v1;
+    extent(c.x(), g.fx(), g.cx(), u0, u1);
+    extent(c.y(), g.fy(), g.cy(), v0, v1);
+    const auto cell = [](double px) {
+      return static_cast<int>(std::clamp(std::floor((px + 0.5) / kCell), -1.0, 1e6));
+    };
+    allowed &= cv::Rect(cv::Point(cell(u0), cell(v0)), cv::Point(cell(u1) + 1, cell(v1) + 1));
+  }
+  cdf_.resize(static_cast<size_t>(cols) * rows);
+  double total = 0.0;
+  for (int y = 0; y < rows; ++y)
+  {
+    const uint8_t* row = small_left_.ptr<uint8_t>(y);
+    for (int x = 0; x < cols; ++x)
+    {
+      // Squared: favour strong matches.
+      const double w = allowed.contains(cv::Point(x, y)) ? static_cast<double>(row[x]) * row[x] : 0.0;
+      total += w;
+      cdf_[static_cast<size_t>(y) * cols + x] = total;
+    }
+  }
+  if (total <= 0.0)
+    return;
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   row_cdf_.resize(cols);
   for (int k = 0; k < count; ++k)

@@ -283,8 +283,9 @@ private:
   void respawn(const StereoGeometry& geometry, int set, int count, double proposal_share,
                const StateEstimate* arrival, double dt);
   /// Draw `count` stereo pairs where the cues' target maps agree (MapProposals); `near`: while tracking, the
-  /// estimate whose disparity bounds the pairs' (within a factor kDisparityReach).
-  void prepareProposals(const StereoGeometry& geometry, int count, const StateEstimate* near);
+  /// estimate whose disparity bounds the pairs' (within a factor kDisparityReach); otherwise, once a track has seen
+  /// the object, only within reacquireReach(stamp) of where it did.
+  void prepareProposals(const StereoGeometry& geometry, int count, const StateEstimate* near, double stamp);
   /// Drop the prepared proposals farther from `from` than max_jump_speed allows in `since` seconds.
   void dropFasterJumps(const StereoGeometry& geometry, const StateEstimate& from, double since);
   static constexpr double kDisparityReach = 1.5;
@@ -311,6 +312,9 @@ private:
   /// object (reacquire_speed_factor, reacquire_min_speed); true when there is no such place, no bound, or `stamp`
   /// is not after that place's (stamps gone back: a bag played again).
   bool withinReacquireReach(const StateEstimate& estimate, double stamp) const;
+  /// How far from where the last track saw the object (seen_estimate_) it can be at `stamp`: (reacquire_speed_factor
+  /// x its speed there + reacquire_min_speed) x the time since; infinite when there is no bound.
+  double reacquireReach(double stamp) const;
   /// Note the interval `dt` since the last frame and return the interval to predict over: while tracking, at most
   /// lost_frames + 0.5 frame periods (framePeriod).
   double predictionInterval(double dt);

@@ -9,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include <Eigen/Core>
 #include <opencv2/core.hpp>
 
 #include "stereo_pf/core/feature_cache.h"
@@ -32,6 +33,12 @@ public:
     /// target at about its present size, which a far smaller or larger disparity would contradict); else null.
     const StateEstimate* near = nullptr;
     double reach = 1.5;
+    /// While searching for an object a track lost (else null): where the track last saw it, and how far from there
+    /// it can be by now (m, reach_radius). Only left pixels whose ray passes within reach_radius of it, and
+    /// partners at the disparities of the depths within it, are proposed: a look-alike elsewhere could not be taken
+    /// for the object (the engine's re-acquisition reach), and the pairs drawn there would be lost on it.
+    const Eigen::Vector3d* last_seen = nullptr;
+    double reach_radius = 0.0;
   };
 
   /// Append up to `count` pairs to `pairs`: a left pixel drawn over 4x4-pixel cells in proportion to the
