@@ -43,8 +43,9 @@ public:
 
   /// Append up to `count` pairs to `pairs`: a left pixel drawn over 4x4-pixel cells in proportion to the
   /// squared product of the maps of the models that are enabled and trusted (`trust[k] > 0`, same order as
-  /// `models`), its partner along the same row of the right product at a positive disparity within `bounds`.
-  /// Fewer (none) when no model has a map or the maps are empty.
+  /// `models`), its partner along the same row of the right product at a positive disparity within `bounds`
+  /// (and, with `bounds.last_seen`, both within the image of the reach sphere, to a cell).
+  /// Fewer (none) when no model has a map, the maps are empty, or they are empty within the reach.
   void draw(FeatureCache& cache, const std::vector<std::shared_ptr<ObservationModel>>& models,
             const std::vector<double>& trust, const StereoGeometry& geometry, int count, const Bounds& bounds,
             Rng& rng, std::vector<std::pair<Pixel, Pixel>>& pairs);
