@@ -494,6 +494,10 @@ TEST(StereoInput, StampOrderDropsLateAndRepeatedFramesAndRestartsWhenTimeStaysBa
   EXPECT_EQ(still.check(0.0, why), V::Drop);
   for (int i = 0; i < 5; ++i)
     EXPECT_EQ(still.check(0.0, why), V::Accept) << i;
+  // ... and a late frame among them is dropped as late, not taken for time gone back.
+  EXPECT_EQ(still.check(-0.1, why), V::Drop);
+  EXPECT_NE(why.find("late"), std::string::npos) << why;
+  EXPECT_EQ(still.check(0.0, why), V::Drop);  // the run of frames stamped alike starts again
 }
 
 TEST(TrackerOutputs, TrailStartsAfreshOnTimeJumpsGapsAndLoss)

@@ -46,6 +46,12 @@ StampOrder::Verdict StampOrder::check(double stamp, std::string& why)
   }
   char text[300];
   const double back = last_ - stamp;
+  // A run counts frames of one kind: a late frame among frames stamped alike (tracked, once their run was long
+  // enough) starts a run of its own, rather than restarting the track at once.
+  const bool alike = !(back > 0.0);
+  if (stale_ > 0 && alike != stale_alike_)
+    stale_ = 0;
+  stale_alike_ = alike;
   if (++stale_ < stale_run_)
   {
     if (back > 0.0)
@@ -62,7 +68,7 @@ StampOrder::Verdict StampOrder::check(double stamp, std::string& why)
     return Verdict::Drop;
   }
   last_ = stamp;
-  if (!(back > 0.0))
+  if (alike)
     return Verdict::Accept;  // every frame stamped alike: tracked (the engine takes the nominal period)
   stale_ = 0;
   std::snprintf(text, sizeof(text),

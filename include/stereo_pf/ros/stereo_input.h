@@ -97,7 +97,8 @@ private:
   int stale_run_;
   double last_ = 0.0;
   bool last_valid_ = false;
-  int stale_ = 0;  ///< stale frames in a row
+  int stale_ = 0;             ///< stale frames of one kind in a row
+  bool stale_alike_ = false;  ///< ... stamped as the last frame tracked (else before it)
 };
 
 /// Empty when `msg` is internally consistent (non-empty, step >= width * pixel size, data.size() >=
