@@ -940,6 +940,57 @@ TEST(ColourHSI, BinImageComputedOncePerViewPerFrame)
   EXPECT_EQ(cache.computeCount(), 4);
 }
 
+TEST(ColourHSI, ATargetThatKeepsChangingHoldsOneMapPerViewAndTheMapFollowsIt)
+{
+  // The target map (the recovery search's proposals) is computed anew whenever the target changes: adapted on a
+  // seen frame, back to what the box showed when a track is lost. It used to be cached under a key of its own per
+  // change: one more image-sized buffer per view each time, kept for as long as the tracker ran (a tracker losing
+  // its object a few times a minute grew by that much every time; with colour adaptation on, every frame).
+  cv::Mat img = makeBackground(cv::Size(240, 200), Background::TexturedGrey, 3);
+  drawDisc(img, 120, 95, 20, kOrange, 4);
+  Parameters params;
+  params.set("adapt_rate", 0.5);
+  params.set("adapt_min", 0.0);
+  auto m = makeModel(params);
+  FeatureCache cache;
+  cache.reset(makeFrame(img, img));
+  std::string error;
+  ASSERT_TRUE(m->learnTarget(cache, View::Left, discBox(120, 95, 20), error)) << error;
+  ImageHypotheses beside;  // a window half on the disc, half on the background: adapting moves the target
+  beside.resize(1);
+  beside.u[0] = 140.0f;
+  beside.v[0] = 95.0f;
+  beside.radius[0] = 20.0f;
+  beside.valid[0] = 1;
+  size_t held = 0;
+  for (int k = 0; k < 20; ++k)
+  {
+    cache.reset(makeFrame(img, img));
+    cv::Mat map;
+    ASSERT_TRUE(m->targetMap(cache, View::Left, map));
+    ASSERT_TRUE(m->targetMap(cache, View::Right, map));
+    if (k == 0)
+      held = cache.products();
+    EXPECT_EQ(cache.products(), held) << "frame " << k;
+    if (k % 3 == 2)
+      m->forgetAdaptation();
+    else
+      m->adapt(cache, beside);
+  }
+  // Within one frame, the map follows a change of target: learned from the background, the disc is no longer
+  // where it is brightest.
+  cache.reset(makeFrame(img, img));
+  cv::Mat disc_map, wall_map;
+  ASSERT_TRUE(m->targetMap(cache, View::Left, disc_map));
+  disc_map = disc_map.clone();
+  ASSERT_TRUE(m->learnTarget(cache, View::Left, cv::Rect(10, 10, 40, 40), error)) << error;
+  ASSERT_TRUE(m->targetMap(cache, View::Left, wall_map));
+  EXPECT_GT(disc_map.at<uint8_t>(95, 120), 128);
+  EXPECT_LT(wall_map.at<uint8_t>(95, 120), 64);
+  EXPECT_GT(wall_map.at<uint8_t>(30, 30), disc_map.at<uint8_t>(30, 30));
+  EXPECT_EQ(cache.products(), held);
+}
+
 // Prints the speed figures; timing is reported, never asserted (machines differ).
 TEST(ColourHSI, TimingReport)
 {

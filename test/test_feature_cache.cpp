@@ -45,6 +45,42 @@ TEST(FeatureCache, ComputesOncePerImagePerFrame)
   EXPECT_EQ(l.at<cv::Vec3b>(0, 0)[0], 20);  // recomputed from the new frame
 }
 
+TEST(FeatureCache, AProductAskedForWithAnotherTagIsComputedAgainInTheSameBuffer)
+{
+  // What a product depends on that changes while the tracker runs (a model's target) goes in its tag, not its key:
+  // another tag computes it again, this frame too, and no buffer is added.
+  FeatureCache cache;
+  cache.reset(frame(10));
+  int calls = 0;
+  auto compute = [&calls](const cv::Mat& image, cv::Mat& out) {
+    ++calls;
+    image.convertTo(out, CV_8UC3, 1.0, calls);  // each computation leaves its own mark
+  };
+  const cv::Mat& a = cache.get(View::Left, "mapped", compute, 1);
+  const uint8_t* buffer = a.data;
+  cache.get(View::Left, "mapped", compute, 1);
+  EXPECT_EQ(calls, 1);
+  const cv::Mat& b = cache.get(View::Left, "mapped", compute, 2);
+  EXPECT_EQ(calls, 2);
+  EXPECT_EQ(b.at<cv::Vec3b>(0, 0)[0], 12);
+  EXPECT_EQ(b.data, buffer);
+  EXPECT_EQ(cache.products(), 1u);
+  // The same for a product computed by regions: another tag starts its valid region afresh.
+  int regions = 0;
+  auto region = [&regions](const cv::Mat& image, cv::Mat& out, const cv::Rect& r) {
+    ++regions;
+    out.create(image.size(), CV_8UC1);
+    out(r).setTo(cv::Scalar(regions));
+  };
+  cache.getRegion(View::Left, "regional", cv::Rect(0, 0, 10, 10), region, 7);
+  cache.getRegion(View::Left, "regional", cv::Rect(2, 2, 5, 5), region, 7);
+  EXPECT_EQ(regions, 1);
+  const cv::Mat& r = cache.getRegion(View::Left, "regional", cv::Rect(2, 2, 5, 5), region, 8);
+  EXPECT_EQ(regions, 2);
+  EXPECT_EQ(r.at<uint8_t>(3, 3), 2);
+  EXPECT_EQ(cache.products(), 2u);
+}
+
 TEST(FeatureCache, GradientMatchesSobel)
 {
   FeatureCache cache;

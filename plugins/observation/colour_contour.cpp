@@ -196,8 +196,7 @@ const cv::Mat& ColourContour::foregroundMap(FeatureCache& cache, View view, cons
 {
   if (!binner_)
     throw std::logic_error("ColourContour: used before initialize()");
-  const std::string key = "colour_contour/" + std::to_string(reinterpret_cast<uintptr_t>(this)) + "/" +
-                          std::to_string(target_version_);
+  const std::string key = "colour_contour/" + std::to_string(reinterpret_cast<uintptr_t>(this));
   return cache.getRegion(view, key, region, [this, &cache, view](const cv::Mat& image, cv::Mat& out, const cv::Rect& r) {
     out.create(image.size(), CV_8UC1);
     if (r.empty())
@@ -205,7 +204,7 @@ const cv::Mat& ColourContour::foregroundMap(FeatureCache& cache, View view, cons
     cv::Mat part = out(r);
     const cv::Mat lut(1, 256, CV_8UC1, lut_.data());
     cv::LUT(binner_->cachedBins(cache, view, r)(r), lut, part);
-  });
+  }, target_version_);
 }
 
 bool ColourContour::outline(const ImageHypotheses& hyp, int i, float focal, float cx, float cy, Outline& o) const

@@ -264,8 +264,7 @@ bool ColourHSI::targetMap(FeatureCache& cache, View view, cv::Mat& map)
   if (!target_.valid())
     return false;
   const cv::Mat& bins = binImage(cache, view);
-  const std::string key = cache_key_ + "/backprojection/" + std::to_string(reinterpret_cast<uintptr_t>(this)) + "/" +
-                          std::to_string(target_version_);
+  const std::string key = cache_key_ + "/backprojection/" + std::to_string(reinterpret_cast<uintptr_t>(this));
   map = cache.get(view, key, [this, &bins](const cv::Mat&, cv::Mat& out) {
     // A 256-entry table from bin to scaled target probability, applied with OpenCV's LUT.
     const std::vector<double>& q = target_.probabilities();
@@ -274,7 +273,7 @@ bool ColourHSI::targetMap(FeatureCache& cache, View view, cv::Mat& map)
     for (size_t b = 0; b < q.size(); ++b)
       lut.at<uint8_t>(static_cast<int>(b)) = cv::saturate_cast<uint8_t>(255.0 * q[b] / q_max);
     cv::LUT(bins, lut, out);
-  });
+  }, target_version_);
   return true;
 }
 

@@ -47,14 +47,15 @@ double FeatureCache::brightness(View view) const
   return static_cast<double>(sum) / (static_cast<double>(kGrid) * kGrid * channels);
 }
 
-const cv::Mat& FeatureCache::get(View view, const std::string& key, const Compute& compute)
+const cv::Mat& FeatureCache::get(View view, const std::string& key, const Compute& compute, long tag)
 {
   Entry& e = entries_[key];
   const int k = static_cast<int>(view);
-  if (e.frame_id[k] != frame_id_)
+  if (e.frame_id[k] != frame_id_ || e.tag[k] != tag)
   {
     compute(frame_.image(view), e.mat[k]);
     e.frame_id[k] = frame_id_;
+    e.tag[k] = tag;
     ++compute_count_;
   }
   return e.mat[k];
@@ -71,13 +72,13 @@ const cv::Mat& FeatureCache::getRows(View view, const std::string& key, int y0, 
 }
 
 const cv::Mat& FeatureCache::getRegion(View view, const std::string& key, const cv::Rect& region,
-                                       const RegionCompute& compute)
+                                       const RegionCompute& compute, long tag)
 {
-  return grow(view, key, region, compute, false);
+  return grow(view, key, region, compute, false, tag);
 }
 
 const cv::Mat& FeatureCache::grow(View view, const std::string& key, const cv::Rect& region,
-                                  const RegionCompute& compute, bool whole_rows)
+                                  const RegionCompute& compute, bool whole_rows, long tag)
 {
   const cv::Mat& image = frame_.image(view);
   cv::Rect want = region & cv::Rect(0, 0, image.cols, image.rows);
@@ -86,9 +87,10 @@ const cv::Mat& FeatureCache::grow(View view, const std::string& key, const cv::R
   Entry& e = entries_[key];
   const int k = static_cast<int>(view);
   cv::Rect& have = e.valid[k];
-  if (e.frame_id[k] != frame_id_)
+  if (e.frame_id[k] != frame_id_ || e.tag[k] != tag)
   {
     e.frame_id[k] = frame_id_;
+    e.tag[k] = tag;
     have = cv::Rect();
   }
   if (have.empty())

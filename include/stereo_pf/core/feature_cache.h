@@ -32,8 +32,12 @@ public:
   const cv::Mat& image(View view) const { return frame_.image(view); }
 
   /// The product named `key` for `view`, computed with `compute` on first use this frame.
-  /// Keys must encode every setting the product depends on (e.g. "hsi_bins/8x8x4/s0.10").
-  const cv::Mat& get(View view, const std::string& key, const Compute& compute);
+  /// Keys must encode every setting the product depends on (e.g. "hsi_bins/8x8x4/s0.10"), except what changes
+  /// while the tracker runs (a model's target: learned again, adapted, forgotten), which goes in `tag`: a product
+  /// asked for with another tag than it was computed for is computed again, in the same buffer. A key per such
+  /// change would keep a buffer per change for good (one full-size image per view each time a lost track's
+  /// histogram went back to the one learned from the box).
+  const cv::Mat& get(View view, const std::string& key, const Compute& compute, long tag = 0);
 
   /// Function that fills rows [y0, y1) of `out`. It allocates `out` at the image's size itself
   /// (`out.create()` keeps a buffer of that size, and the rows already in it) and must not write other rows.
@@ -54,7 +58,8 @@ public:
   /// cloud cover a patch of the image, narrower than the band of rows it spans. Pixels that were not asked
   /// for this frame hold stale data. A key may be asked for both ways: getRows() computes whole rows, so the
   /// valid rectangle's rows are computed again whole when it is narrower than the image.
-  const cv::Mat& getRegion(View view, const std::string& key, const cv::Rect& region, const RegionCompute& compute);
+  const cv::Mat& getRegion(View view, const std::string& key, const cv::Rect& region, const RegionCompute& compute,
+                           long tag = 0);
   /// 8-bit grey image of a view.
   const cv::Mat& gray(View view);
   /// Rows [y0, y1) (clipped) of the 8-bit grey image of a view (see getRows()).
@@ -78,16 +83,20 @@ public:
 
   /// How many products have been computed since construction (for tests: proves sharing).
   long computeCount() const { return compute_count_; }
+  /// How many products (keys) the cache holds buffers for: bounded by the models and their settings, not by
+  /// the frames or the targets seen (for tests).
+  size_t products() const { return entries_.size(); }
 
 private:
   /// getRegion(), and getRows() with `whole_rows`: `compute` fills whole rows only, so rows of the valid rectangle
   /// that it does not span are computed again whole, in one call.
   const cv::Mat& grow(View view, const std::string& key, const cv::Rect& region, const RegionCompute& compute,
-                      bool whole_rows);
+                      bool whole_rows, long tag = 0);
   struct Entry
   {
     cv::Mat mat[2];
     long frame_id[2] = { -1, -1 };
+    long tag[2] = { 0, 0 };  ///< what the product was computed for (get(), getRegion())
     cv::Rect valid[2];  ///< the pixels valid this frame (getRegion() and getRows() products)
   };
   StereoFrame frame_;

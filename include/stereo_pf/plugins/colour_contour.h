@@ -129,7 +129,7 @@ private:
   TargetHistogram target_, background_;
   std::vector<uint8_t> lut_;      // bin -> 255 P, 256 entries
   float learned_radius_ = 0.0f;
-  long target_version_ = 0;       // part of the P map's cache key
+  long target_version_ = 0;       // the P map's cache tag (bumped when the target changes)
   float background_mismatch_ = 0.0f;
   double invalid_log_likelihood_ = 0.0;
   // The line patterns, the same for every hypothesis (sized in applyTunables).
