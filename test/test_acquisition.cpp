@@ -798,6 +798,35 @@ TEST(TemplateMatch, ConvertsOnlyTheRowsItsWindowsReadAndScoresAsOnTheWholeImage)
   }
 }
 
+TEST(TemplateMatch, TwoTemplatesInOneTrackerHaveTargetMapsOfTheirOwn)
+{
+  // The recovery search's maps come through the frame's cache. Two templates (two TemplateMatch cues in one
+  // tracker, each with its target) shared one map under one key: the second was given the first's. Each now has its
+  // own, and a template that changes (learned again) has its map computed again in the same frame.
+  using namespace stereo_pf;
+  LearnedGreyBall g;
+  ASSERT_TRUE(g.learned) << g.error;
+  auto other = plugin<TemplateMatch>("other_template");
+  const cv::Rect wall(20, 20, g.box.width, g.box.height);  // a patch of the backdrop, away from the ball
+  ASSERT_TRUE(other->learnTarget(g.cache, View::Left, wall, g.error)) << g.error;
+  cv::Mat ball_map, wall_map;
+  ASSERT_TRUE(g.m->targetMap(g.cache, View::Left, ball_map));
+  ball_map = ball_map.clone();
+  ASSERT_TRUE(other->targetMap(g.cache, View::Left, wall_map));
+  wall_map = wall_map.clone();
+  EXPECT_GT(cv::norm(ball_map, wall_map, cv::NORM_L1), 0.0) << "the second template was given the first's map";
+  // The maps are coarser than the image: compare them at the ball's centre, scaled to the map.
+  const Pixel at = g.f.geometry.projectLeft(g.truth);
+  const cv::Point ball(static_cast<int>(at.u * ball_map.cols / g.f.left.cols),
+                       static_cast<int>(at.v * ball_map.rows / g.f.left.rows));
+  EXPECT_GT(ball_map.at<uint8_t>(ball), wall_map.at<uint8_t>(ball));
+  // The first learned again, from the wall: its map follows within the frame.
+  ASSERT_TRUE(g.m->learnTarget(g.cache, View::Left, wall, g.error)) << g.error;
+  cv::Mat again;
+  ASSERT_TRUE(g.m->targetMap(g.cache, View::Left, again));
+  EXPECT_EQ(cv::norm(again, wall_map, cv::NORM_L1), 0.0);
+}
+
 namespace
 {
 /// A cue whose scores a test scripts (evaluate()): it learns nothing and saves nothing.

@@ -5,6 +5,7 @@
 #include "stereo_pf/plugins/template_match.h"
 
 #include <algorithm>
+#include <cstdint>
 #include <cmath>
 
 #include <Eigen/Core>
@@ -190,6 +191,7 @@ void TemplateMatch::useTemplate()
   for (size_t i = 0; i < current_.size(); ++i)
     weighted_[i] = weights_[i] * current_[i];
   activeWeighted();
+  ++template_version_;
 }
 
 void TemplateMatch::setTarget(const std::vector<float>& learned, double box_radius, double aspect_x, double aspect_y)
@@ -304,7 +306,9 @@ bool TemplateMatch::targetMap(FeatureCache& cache, View view, cv::Mat& map)
   if (current_.empty())
     return false;
   const cv::Mat& gray = cache.gray(view);  // cached first: the computation below must not re-enter the cache
-  map = cache.get(view, "template_match_map", [this, &gray](const cv::Mat&, cv::Mat& out) {
+  // Per model (two templates in one tracker have maps of their own), computed again when the template changes.
+  const std::string key = "template_match_map/" + std::to_string(reinterpret_cast<uintptr_t>(this));
+  map = cache.get(view, key, [this, &gray](const cv::Mat&, cv::Mat& out) {
     double hx, hy;
     halfSizes(0.0, hx, hy);
     // The template spans 2 hx x 2 hy pixels; shrink the image so that it spans kMapSamples samples (a map for
@@ -336,7 +340,7 @@ bool TemplateMatch::targetMap(FeatureCache& cache, View view, cv::Mat& map)
     cv::Mat full(small.size(), CV_32F, cv::Scalar(0));
     result.copyTo(full(cv::Rect(tw / 2, th / 2, result.cols, result.rows)));
     full.convertTo(out, CV_8U, 255.0);  // saturates: negative correlations become 0
-  });
+  }, template_version_);
   return true;
 }
 

@@ -112,6 +112,7 @@ private:
   std::vector<float> active_weighted_;  ///< weighted_ of those points
   std::vector<float> learned_, running_, current_;  ///< normalised templates (current_ = anchor mix)
   std::vector<float> weighted_;  ///< weights_ times current_, for score()
+  long template_version_ = 0;    ///< bumped when current_ changes: the target map's cache tag
   double box_radius_ = 0.0;  ///< half the box's mean side, px (2D hypotheses)
   double aspect_x_ = 1.0, aspect_y_ = 1.0;  ///< the box's half-width and half-height over box_radius_
   std::vector<float> scratch_;
