@@ -5,8 +5,8 @@
 #include "stereo_pf/plugins/template_match.h"
 
 #include <algorithm>
-#include <cstdint>
 #include <cmath>
+#include <cstdint>
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
