@@ -268,6 +268,51 @@ stereo_pf::FilterEngine defaultEngine(std::shared_ptr<stereo_pf::StateModel> sta
 }
 }  // namespace
 
+TEST(MatchBox, ACandidateTheLeftImageShowsElsewhereIsPassedOver)
+{
+  // The object (texture P, 40 px) at left x 300 is seen by the right camera at disparity 60 with noise on it (its
+  // other side, other light). Something on the wall (texture Q, two parts P and one part another texture) lies
+  // at disparity 30, at right x 100: in the right image it is where the object would be at disparity 200, and
+  // there it correlates with the box better than the object's own right image does. Looked for in the left image,
+  // that patch is found where it lies (left x 130), not at the box: the match is the object's, at 60.
+  cv::RNG rng(11);
+  auto texture = [&](cv::Mat& t) {
+    t.create(40, 40, CV_32F);
+    rng.fill(t, cv::RNG::UNIFORM, 60.0, 200.0);
+    cv::GaussianBlur(t, t, cv::Size(5, 5), 0.0);
+  };
+  cv::Mat p, other, noise;
+  texture(p);
+  texture(other);
+  noise.create(40, 40, CV_32F);
+  rng.fill(noise, cv::RNG::NORMAL, 0.0, 12.0);
+  const cv::Mat q = (2.0 * p + other) / 3.0, seen = p + noise;
+  cv::Mat left(240, 640, CV_32F, cv::Scalar(128)), right(240, 640, CV_32F, cv::Scalar(128));
+  p.copyTo(left(cv::Rect(300, 100, 40, 40)));
+  q.copyTo(left(cv::Rect(130, 100, 40, 40)));
+  seen.copyTo(right(cv::Rect(240, 100, 40, 40)));
+  q.copyTo(right(cv::Rect(100, 100, 40, 40)));
+  StereoFrame f;
+  left.convertTo(f.left, CV_8U);
+  right.convertTo(f.right, CV_8U);
+  f.geometry = stereo_pf::StereoGeometry(400.0, 400.0, 320.0, 120.0, 0.1, 640, 240);
+  const cv::Rect box(300, 100, 40, 40);
+  const BoxMatch m = matchBox(f, box);
+  ASSERT_TRUE(m.ok) << m.error;
+  std::cout << "[ figures  ] correlation at disparity 200 (the wall's patch) " << m.scores[200] << ", at 60 (the object) "
+            << m.scores[60] << "; matched at " << m.disparity << "\n";
+  EXPECT_GT(m.scores[200], m.scores[60]) << "the wall's patch must correlate better for this to test anything";
+  EXPECT_NEAR(m.disparity, 60.0, 0.5);
+  // With the object's right image gone (the wall's patch the only candidate), no match is a clear error.
+  cv::Mat hidden = right.clone();
+  hidden(cv::Rect(240, 100, 40, 40)).setTo(cv::Scalar(128));
+  hidden.convertTo(f.right, CV_8U);
+  const BoxMatch none = matchBox(f, box);
+  EXPECT_FALSE(none.ok);
+  EXPECT_NE(none.error.find("no consistent match"), std::string::npos) << none.error;
+  EXPECT_NE(none.error.find(stereo_pf::boxText(box)), std::string::npos) << none.error;
+}
+
 TEST(Tracking, NoDepthBiasFromTheObjectsSize)
 {
   // The default cues and Position3D on a static 2 cm and 8 cm ball in front of clutter: the learned size, and

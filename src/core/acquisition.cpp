@@ -17,6 +17,9 @@ std::string boxText(const cv::Rect& box)
 
 namespace
 {
+/// Candidates (peaks of the correlation along the rows, best first) checked left against right before giving up.
+constexpr size_t kMaxCandidates = 4;
+
 BoxMatch failure(const cv::Rect& box, const std::string& why)
 {
   BoxMatch m;
@@ -34,6 +37,55 @@ struct Template
   double norm2 = 0.0;          ///< sum of w * centred^2
   double weight_sum = 0.0;     ///< sum of w over pixels
 };
+
+/// Fill `t`'s values from the window of `image` (CV_32F, any channels) whose top-left corner is `at`.
+void fillTemplate(const cv::Mat& image, cv::Point at, Template& t)
+{
+  const int channels = image.channels();
+  std::vector<double> sum(channels, 0.0);
+  t.centred.resize(t.offsets.size() * channels);
+  for (size_t i = 0; i < t.offsets.size(); ++i)
+  {
+    const float* px = image.ptr<float>(at.y + t.offsets[i].y) + (at.x + t.offsets[i].x) * channels;
+    const double w = t.weights[i];
+    for (int c = 0; c < channels; ++c)
+    {
+      t.centred[i * channels + c] = px[c];
+      sum[c] += w * px[c];
+    }
+  }
+  t.norm2 = 0.0;
+  for (size_t i = 0; i < t.offsets.size(); ++i)
+    for (int c = 0; c < channels; ++c)
+    {
+      float& v = t.centred[i * channels + c];
+      v = static_cast<float>(v - sum[c] / t.weight_sum);
+      t.norm2 += t.weights[i] * static_cast<double>(v) * v;
+    }
+}
+
+/// Weighted zero-mean normalised correlation of `t` with the window of `image` whose top-left corner is `at`.
+double correlate(const Template& t, const cv::Mat& image, cv::Point at)
+{
+  const int channels = image.channels();
+  double s_sum[4] = { 0.0, 0.0, 0.0, 0.0 }, s2_sum = 0.0, cross = 0.0;
+  for (size_t i = 0; i < t.offsets.size(); ++i)
+  {
+    const float* px = image.ptr<float>(at.y + t.offsets[i].y) + (at.x + t.offsets[i].x) * channels;
+    const double w = t.weights[i];
+    for (int c = 0; c < channels; ++c)
+    {
+      s_sum[c] += w * px[c];
+      s2_sum += w * px[c] * px[c];
+      cross += w * t.centred[i * channels + c] * px[c];
+    }
+  }
+  // Per channel, sum w (t - mt)(s - ms) = sum w (t - mt) s, since sum w (t - mt) = 0.
+  double var_s = s2_sum;
+  for (int c = 0; c < channels; ++c)
+    var_s -= s_sum[c] * s_sum[c] / t.weight_sum;
+  return var_s > 1e-9 && t.norm2 > 0.0 ? cross / std::sqrt(t.norm2 * var_s) : 0.0;
+}
 
 /// Half the size of a sphere's image along one image axis: of the interval between the two planes through the
 /// optical centre that touch the sphere (exact for a pinhole camera; `c` is the centre's coordinate along that
@@ -98,15 +150,11 @@ BoxMatch matchBox(const StereoFrame& frame, const cv::Rect& box, const BoxMatchO
   cv::Mat left, right;
   frame.left.convertTo(left, CV_32F);
   frame.right.convertTo(right, CV_32F);
-  const int channels = left.channels();
 
   // Weights: the inscribed ellipse counts fully, the ring around it (the outline against the surroundings)
   // partly; the window's corners not at all.
   Template t;
-  std::vector<double> sum(channels, 0.0);
   for (int y = window.y; y < window.y + window.height; ++y)
-  {
-    const float* row = left.ptr<float>(y);
     for (int x = window.x; x < window.x + window.width; ++x)
     {
       const double du = (x - cu) / hu, dv = (y - cv_) / hv;
@@ -116,21 +164,9 @@ BoxMatch matchBox(const StereoFrame& frame, const cv::Rect& box, const BoxMatchO
         continue;
       t.offsets.emplace_back(x - window.x, y - window.y);
       t.weights.push_back(static_cast<float>(w));
-      for (int c = 0; c < channels; ++c)
-      {
-        t.centred.push_back(row[x * channels + c]);
-        sum[c] += w * row[x * channels + c];
-      }
       t.weight_sum += w;
     }
-  }
-  for (size_t i = 0; i < t.offsets.size(); ++i)
-    for (int c = 0; c < channels; ++c)
-    {
-      float& v = t.centred[i * channels + c];
-      v = static_cast<float>(v - sum[c] / t.weight_sum);
-      t.norm2 += t.weights[i] * static_cast<double>(v) * v;
-    }
+  fillTemplate(left, window.tl(), t);
   // Under one grey level of spread: nothing to correlate (a flat box on a flat background).
   if (t.norm2 < t.weight_sum * 1.0)
     return failure(box, "has no contrast to match in the right image (a uniform region)");
@@ -141,46 +177,68 @@ BoxMatch matchBox(const StereoFrame& frame, const cv::Rect& box, const BoxMatchO
   m.first_disparity = 0;
   m.scores.assign(max_d + 1, -1.0);
   for (int d = 0; d <= max_d; ++d)
-  {
-    double s_sum[4] = { 0.0, 0.0, 0.0, 0.0 }, s2_sum = 0.0, cross = 0.0;
-    for (size_t i = 0; i < t.offsets.size(); ++i)
-    {
-      const float* px = right.ptr<float>(window.y + t.offsets[i].y) + (window.x - d + t.offsets[i].x) * channels;
-      const double w = t.weights[i];
-      for (int c = 0; c < channels; ++c)
-      {
-        s_sum[c] += w * px[c];
-        s2_sum += w * px[c] * px[c];
-        cross += w * t.centred[i * channels + c] * px[c];
-      }
-    }
-    // Per channel, sum w (t - mt)(s - ms) = sum w (t - mt) s, since sum w (t - mt) = 0.
-    double var_s = s2_sum;
-    for (int c = 0; c < channels; ++c)
-      var_s -= s_sum[c] * s_sum[c] / t.weight_sum;
-    m.scores[d] = var_s > 1e-9 ? cross / std::sqrt(t.norm2 * var_s) : 0.0;
-  }
+    m.scores[d] = correlate(t, right, cv::Point(window.x - d, window.y));
 
-  const int best = static_cast<int>(std::max_element(m.scores.begin(), m.scores.end()) - m.scores.begin());
-  m.score = m.scores[best];
-  // The strongest other peak, far enough from the best not to be its own shoulder.
+  // The peaks, best first, each farther than `apart` from every better one (not a shoulder of it).
   const int apart = std::max(2, box.width / 2);
+  std::vector<int> peaks;
   for (int d = 0; d <= max_d; ++d)
-  {
-    if (std::abs(d - best) <= apart)
-      continue;
-    const bool peak = (d == 0 || m.scores[d] >= m.scores[d - 1]) && (d == max_d || m.scores[d] >= m.scores[d + 1]);
-    if (peak && m.scores[d] > m.second_score)
+    if ((d == 0 || m.scores[d] >= m.scores[d - 1]) && (d == max_d || m.scores[d] >= m.scores[d + 1]))
+      peaks.push_back(d);
+  std::stable_sort(peaks.begin(), peaks.end(), [&](int a, int b) { return m.scores[a] > m.scores[b]; });
+  std::vector<int> distinct;
+  for (int d : peaks)
+    if (std::none_of(distinct.begin(), distinct.end(), [&](int k) { return std::abs(d - k) <= apart; }))
+      distinct.push_back(d);
+
+  // Left-right check: what the right image shows at a candidate disparity, looked for in the left image along the
+  // same rows, must be found back at the box, not elsewhere. A patch of the surroundings that happens to
+  // correlate with the box (the box's own outline blurred, a smooth backdrop) fails it: its best match in the
+  // left image is where that patch itself lies. The best candidates that fail it are passed over.
+  auto backCheck = [&](int d, int& back_best) {
+    const int xr = window.x - d;
+    Template b = t;  // the same pixels and weights, from the right image
+    fillTemplate(right, cv::Point(xr, window.y), b);
+    const int max_back = left.cols - window.width - xr;
+    double best_score = -2.0, near_score = -2.0;
+    back_best = d;
+    for (int k = 0; k <= max_back; ++k)
     {
-      m.second_score = m.scores[d];
-      m.second_disparity = d;
+      const double s = correlate(b, left, cv::Point(xr + k, window.y));
+      if (s > best_score)
+      {
+        best_score = s;
+        back_best = k;
+      }
+      if (std::abs(k - d) <= apart)
+        near_score = std::max(near_score, s);
+    }
+    return near_score >= best_score - o.ambiguity_margin;
+  };
+  int best = distinct.empty() ? 0 : distinct.front();
+  size_t chosen = distinct.size();
+  int rejected = -1, rejected_back = 0;
+  for (size_t k = 0; k < distinct.size() && k < kMaxCandidates && m.scores[distinct[k]] >= o.min_score; ++k)
+  {
+    int back = 0;
+    if (backCheck(distinct[k], back))
+    {
+      chosen = k;
+      best = distinct[k];
+      break;
+    }
+    if (rejected < 0)
+    {
+      rejected = distinct[k];
+      rejected_back = back;
     }
   }
+  m.score = m.scores[best];
 
   std::ostringstream why;
   why.precision(2);
   why.setf(std::ios::fixed);
-  if (m.score < o.min_score && o.ring_weight > 0.0)
+  if ((m.score < o.min_score || chosen == distinct.size()) && o.ring_weight > 0.0)
   {
     // The ring carries the outline against what lies behind the object; close up, the two cameras see
     // different surroundings (and sides) of it, and the ring then spoils the match: the object alone may still
@@ -206,6 +264,26 @@ BoxMatch matchBox(const StereoFrame& frame, const cv::Rect& box, const BoxMatchO
     BoxMatch f = failure(box, why.str());
     f.scores = m.scores;
     return f;
+  }
+  if (chosen == distinct.size())
+  {
+    why << "no consistent match in the right image: its best candidate, disparity " << rejected << " (correlation "
+        << m.scores[rejected] << "), shows something that matches the left image better at disparity "
+        << rejected_back << " (something else in the view, not the box's object)";
+    BoxMatch f = failure(box, why.str());
+    f.scores = m.scores;
+    return f;
+  }
+  // The strongest other candidate not shown to be something else: one about as good as the best is checked too.
+  for (size_t k = chosen + 1; k < distinct.size(); ++k)
+  {
+    const int d = distinct[k];
+    int back = 0;
+    if (m.scores[d] > m.score - o.ambiguity_margin && k <= chosen + kMaxCandidates && !backCheck(d, back))
+      continue;
+    m.second_score = m.scores[d];
+    m.second_disparity = d;
+    break;
   }
   if (m.second_score > m.score - o.ambiguity_margin)
   {
