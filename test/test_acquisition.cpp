@@ -420,6 +420,48 @@ TEST(Tracking, ABallThrownAtTheCameraIsFollowedByTheLocalSearch)
   EXPECT_GT(0.5 * (ratios[2] + ratios[3]), 1.5) << "the median seed is not 1.5 times worse without the local search";
 }
 
+TEST(Tracking, AnObjectAlreadyMovingFastWhenBoxedIsFollowedFromTheFirstFrame)
+{
+  // A ball 6.3 px in radius crossing the view at 6 m/s, 2.5 m away at 30 fps: 42 px (almost seven radii) a frame,
+  // from the frame its box is drawn on. No motion is known at the first frame after the box; the local search
+  // then reaches as far as start_speed (20 m/s) goes in a frame, and the track follows. With start_speed 0 (a
+  // window of two radii) the ball is out of reach at once.
+  using namespace stereo_pf;
+  SceneSphere s = ball(0.03, Eigen::Vector3d(0.0, 0.0, 2.5));
+  s.trajectory.type = Trajectory::Type::Waypoints;
+  s.trajectory.times = { 0.0, 0.4 };
+  s.trajectory.points = { Eigen::Vector3d(-1.2, 0.1, 2.5), Eigen::Vector3d(1.2, 0.1, 2.5) };
+  SceneDescription d = scene({ s }, 5.0, true);
+  d.frames = 12;
+  SceneRenderer renderer(d);
+  auto run = [&](double start_speed, unsigned long seed) {
+    EngineConfig c;
+    c.start_speed = start_speed;
+    c.seed = seed;
+    FilterEngine engine = defaultEngine(plugin<Velocity3D>("state_model"), c);
+    cv::Mat l, r;
+    auto frame = [&](int k) { return renderer.renderFrame(k, l, r); };
+    std::string error;
+    EXPECT_TRUE(engine.learnTarget(frame(0), renderer.targetRoi(0), error)) << error;
+    double worst = 0.0;
+    for (int k = 0; k < d.frames; ++k)
+    {
+      const FrameResult res = engine.step(frame(k));
+      const Eigen::Vector3d truth = renderer.targetPosition(k);
+      worst = std::max(worst, res.estimate.valid ? (res.estimate.position - truth).norm() / truth.norm() : 1.0);
+    }
+    return worst;
+  };
+  for (unsigned long seed = 1; seed <= 3; ++seed)
+  {
+    const double followed = run(EngineConfig().start_speed, seed), two_radii = run(0.0, seed);
+    std::cout << "[ figures  ] seed " << seed << ", worst error / range: start_speed " << EngineConfig().start_speed
+              << " m/s " << followed << ", 0 (two radii) " << two_radii << "\n";
+    EXPECT_LT(followed, 0.03) << "seed " << seed;
+    EXPECT_GT(two_radii, 0.1) << "seed " << seed;
+  }
+}
+
 namespace
 {
 /// The local search's input for an object last seen at left (300, 200), disparity 40 px, 10 px in radius, that
@@ -464,6 +506,59 @@ TEST(LocalSearch, AnObjectThatReversedItsMotionIsFound)
     EXPECT_NEAR(m.right.u, u - 40.0, m.step + 0.5) << "object at u = " << u;
     EXPECT_GT(m.similarity, 0.8) << "object at u = " << u;
   }
+}
+
+TEST(LocalSearch, WithNoMotionKnownItReachesAsFarAsItIsTold)
+{
+  // A track with no motion known yet (its first frame after the box) of an object 10 px in radius that has moved
+  // 70 px along the row: the window of two radii around where it was misses it; told that it may have gone 80 px
+  // (ImageTrack::reach, from the engine's start_speed) and finding nothing as similar as ImageTrack::enough (1 by
+  // default) near, the search finds it.
+  using namespace stereo_pf;
+  const HypothesisScorer score = [&](const ImageHypotheses& hyp, Eigen::VectorXd& ll, Eigen::VectorXd& sim) {
+    for (int i = 0; i < hyp.size(); ++i)
+    {
+      const double at = hyp.view == View::Left ? 370.0 : 330.0;
+      const double s = std::max(0.0, 1.0 - std::hypot(hyp.u[i] - at, hyp.v[i] - 200.0) / 10.0);
+      ll[i] += 10.0 * s;
+      sim[i] += s;
+    }
+  };
+  LocalSearch search;
+  ImageTrack still = trackAt300(0.0);
+  const LocalMatch near = search.search(still, 640, 480, score);
+  EXPECT_FALSE(near.found && near.similarity > 0.5) << "found at " << near.left.u;
+  still.reach = 80.0;
+  const LocalMatch far = search.search(still, 640, 480, score);
+  ASSERT_TRUE(far.found);
+  EXPECT_NEAR(far.left.u, 370.0, far.step);
+  EXPECT_NEAR(far.left.v, 200.0, far.step);
+  EXPECT_GT(far.similarity, 0.7);
+  // The grid stays no coarser than the object's radius.
+  EXPECT_LE(3.0 * far.step, 10.0 + 1e-9);
+
+  // A slow object, 5 px from where it was, scores 0.8; a look-alike 70 px off scores 1. Whatever is within two
+  // radii and as similar as the object should be (ImageTrack::enough) ends the search there.
+  const HypothesisScorer two = [&](const ImageHypotheses& hyp, Eigen::VectorXd& ll, Eigen::VectorXd& sim) {
+    for (int i = 0; i < hyp.size(); ++i)
+    {
+      const double shift = hyp.view == View::Left ? 0.0 : 40.0;
+      auto bump = [&](double at, double height) {
+        return height * std::max(0.0, 1.0 - std::hypot(hyp.u[i] - (at - shift), hyp.v[i] - 200.0) / 10.0);
+      };
+      const double s = std::max(bump(305.0, 0.8), bump(370.0, 1.0));
+      ll[i] += 10.0 * s;
+      sim[i] += s;
+    }
+  };
+  still.enough = 0.65;
+  const LocalMatch slow = search.search(still, 640, 480, two);
+  ASSERT_TRUE(slow.found);
+  EXPECT_NEAR(slow.left.u, 305.0, slow.step);
+  still.enough = 1.0;  // nothing is that similar: the look-alike, the best within reach, is taken
+  const LocalMatch taken = search.search(still, 640, 480, two);
+  ASSERT_TRUE(taken.found);
+  EXPECT_NEAR(taken.left.u, 370.0, taken.step);
 }
 
 TEST(LocalSearch, AKnownMotionBoundsTheDisparitiesSearched)

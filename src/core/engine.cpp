@@ -188,6 +188,9 @@ const std::vector<EngineField>& engineFields()
     doubleField<&C::local_fraction>("local_fraction", 0.0, 1.0, false,
                                     "while tracking, share of each set moved every frame around the local search's "
                                     "match near the object's predicted image position (0: off)"),
+    doubleField<&C::start_speed>("start_speed", 0.0, 1e3, false,
+                                 "m/s; while no image motion of the track is known, the local search reaches as far "
+                                 "as this speed takes the object in a frame (0: two radii)"),
     doubleField<&C::proposal_min_depth>("proposal_min_depth", 1e-3, 1e6, false,
                                         "m; nearest depth a proposal may have"),
     doubleField<&C::refine_jitter>("refine_jitter", 0.0, 10.0, true,
@@ -666,7 +669,7 @@ bool FilterEngine::anyNonRefiningCue() const
                      [](const std::shared_ptr<ObservationModel>& m) { return m->enabled() && !m->refine(); });
 }
 
-int FilterEngine::proposeLocally(const StereoGeometry& geometry, int count)
+int FilterEngine::proposeLocally(const StereoGeometry& geometry, int count, double dt)
 {
   if (count <= 0 || track_known_ < 1 || !(track_disparity_[0] > 0.0))
     return 0;
@@ -679,6 +682,14 @@ int FilterEngine::proposeLocally(const StereoGeometry& geometry, int count)
     track.du = track_left_[0].u - track_left_[1].u;
     track.dv = track_left_[0].v - track_left_[1].v;
     track.dd = track_disparity_[0] - track_disparity_[1];
+  }
+  else if (config_.start_speed > 0.0 && dt > 0.0 && geometry.baseline() > 0.0)
+  {
+    // No motion known yet: as far as start_speed goes in this frame's interval, in pixels at the track's depth
+    // (fx v dt / z = v dt d / b).
+    track.enough = config_.found_similarity;
+    track.reach = std::min(config_.start_speed * dt * track.disparity / geometry.baseline(),
+                           static_cast<double>(std::max(geometry.width(), geometry.height())));
   }
   // The evidence cues while tracking (not the refining ones, which need a region to refine, nor those comparing
   // the two views): the sum of their log-likelihoods, their mean similarity.
@@ -1207,7 +1218,8 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     {
       dropFasterJumps(geometry, *from, since);
       respawn_count = static_cast<int>(proposals_.size()) +
-                      proposeLocally(geometry, static_cast<int>(std::lround(config_.local_fraction * config_.particles)));
+                      proposeLocally(geometry, static_cast<int>(std::lround(config_.local_fraction * config_.particles)),
+                                     dt);
     }
     for (int s = 0; s < static_cast<int>(sets_.size()); ++s)
     {

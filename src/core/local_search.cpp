@@ -56,21 +56,34 @@ LocalMatch LocalSearch::search(const ImageTrack& track, int width, int height, c
   const double behind = std::max(ahead, 2.0 * motion + rp + 2.0);  // from the prediction, against the motion
   const double back = motion > 0.0 ? 0.5 * (behind - ahead) / motion : 0.0;
   const double cu = pu - back * track.du, cv = pv - back * track.dv;
-  const double half = 0.5 * (ahead + behind);
-  const double step = std::max(1.0, 2.0 * ahead / (kMaxGrid - 1));
-  const int k = static_cast<int>(std::ceil(half / step));  // at most 1.5 (kMaxGrid - 1) / 2, rounded up
-  hyp_.view = View::Left;
-  hyp_.resize(0);
+  double step = std::max(1.0, 2.0 * ahead / (kMaxGrid - 1));
   auto add = [&](double u, double v, double r) {
     hyp_.u.push_back(static_cast<float>(u));
     hyp_.v.push_back(static_cast<float>(v));
     hyp_.radius.push_back(static_cast<float>(r));
     hyp_.valid.push_back(inside(u, v) ? 1 : 0);
   };
-  for (int y = -k; y <= k; ++y)
-    for (int x = -k; x <= k; ++x)
-      add(cu + x * step, cv + y * step, rp);
-  int b = best(score);
+  // The grid of spacing `spacing` over the square of half-size `half` around (cu, cv): its best point.
+  auto grid = [&](double spacing, double half) {
+    const int k = static_cast<int>(std::ceil(half / spacing));
+    hyp_.view = View::Left;
+    hyp_.resize(0);
+    for (int y = -k; y <= k; ++y)
+      for (int x = -k; x <= k; ++x)
+        add(cu + x * spacing, cv + y * spacing, rp);
+    return best(score);
+  };
+  int b = grid(step, 0.5 * (ahead + behind));  // at most 1.5 (kMaxGrid - 1) / 2 points each side, rounded up
+  // No motion known yet, and nothing in that window as similar as the object should be (track.enough): as far as
+  // the object may have gone (track.reach), on a grid no coarser than its radius (at most kMaxWideGrid points per
+  // axis). A slow object is taken where it is, before a look-alike farther off can be.
+  const bool moving = track.du != 0.0 || track.dv != 0.0 || track.dd != 0.0;
+  if (!moving && track.reach > rp && (b < 0 || sim_[b] < track.enough))
+  {
+    const double half = track.reach + rp + 2.0;
+    step = std::max({ 1.0, std::min(2.0 * half / (kMaxGrid - 1), rp), 2.0 * half / (kMaxWideGrid - 1) });
+    b = grid(step, half);
+  }
   if (b < 0)
     return m;
   double lu = hyp_.u[b], lv = hyp_.v[b];
@@ -98,7 +111,6 @@ LocalMatch LocalSearch::search(const ImageTrack& track, int width, int height, c
   // prediction (reach 51) scored 0.46 and drew the depth to 3.0 m instead of 3.7. Real pitches at seeds 1-60:
   // 229 against 214 of 240 runs within 2 % of range (catch_test1 55 against 45 of 60); drawn scenes (5 draws x 30,
   // seeds 1-3): 271 against 264 of 450 successful.
-  const bool moving = track.du != 0.0 || track.dv != 0.0 || track.dd != 0.0;
   const double reach = 2.0 + 2.0 * std::fabs(track.dd) + (moving ? 0.05 : 0.1) * pd;
   const double d_step = std::max(0.5, 2.0 * reach / 32.0);
   const int kd = static_cast<int>(std::ceil(reach / d_step));

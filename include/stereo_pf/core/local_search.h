@@ -26,6 +26,8 @@ struct ImageTrack
   double radius = 0.0;        ///< apparent radius in the left image, px
   double du = 0.0, dv = 0.0;  ///< left image motion per frame, px (du, dv and dd all 0: no motion known yet)
   double dd = 0.0;            ///< disparity change per frame, px
+  double reach = 0.0;         ///< px; with no motion known, how far the object may have gone since (0: two radii) ...
+  double enough = 1.0;        ///< ... searched when nothing within two radii has this mean cue similarity
 };
 
 /// What the local search found.
@@ -58,6 +60,8 @@ public:
   /// also reaches back as far as the motion reversed would take the object, on more points of the same spacing
   /// (at most 1.5 times as many per axis). The spacing grows with the motion so that the cost stays bounded.
   static constexpr int kMaxGrid = 15;
+  /// Grid points per axis at most when no motion is known and the window reaches as far as ImageTrack::reach.
+  static constexpr int kMaxWideGrid = 41;
 
 private:
   /// Score `hyp_` and return the index of the best valid hypothesis (-1: none).
