@@ -540,6 +540,7 @@ enum class StepConfig
   Default,            // the default tracker (config/tracker.yaml): Velocity3D + ColourHSI + TemplateMatch +
                       // ColourContour + StereoMatch, recovery and local search, on pendulum_uncluttered
   DefaultNoSearch,    // the same without the recovery and local search (their cost is the difference)
+  DefaultNoRecovery,  // the same without the recovery search alone (its cost is the difference to Default)
   Position3DDefault,  // Position3D with the default cues and searches
   Position3DColour,   // Position3D + ColourHSI + ColourContour on pendulum_uncluttered
   Position3DHistogram,  // Position3D + ColourHSI alone (the thesis's colour model) on pendulum_uncluttered
@@ -557,12 +558,12 @@ void BM_Step(benchmark::State& state, StepConfig config)
   if (config == StepConfig::SCColour || config == StepConfig::SCHistogram)
     model = makeModel<StereoConstraints>("state_model");
   else if (config == StepConfig::Velocity3DColour || config == StepConfig::Default ||
-           config == StepConfig::DefaultNoSearch)
+           config == StepConfig::DefaultNoSearch || config == StepConfig::DefaultNoRecovery)
     model = makeModel<Velocity3D>("state_model");
   else
     model = makeModel<Position3D>("state_model");
   const bool default_cues = config == StepConfig::Default || config == StepConfig::DefaultNoSearch ||
-                            config == StepConfig::Position3DDefault;
+                            config == StepConfig::DefaultNoRecovery || config == StepConfig::Position3DDefault;
   std::vector<std::shared_ptr<ObservationModel>> cues = { colourCue() };
   if (default_cues)
     cues.push_back(templateCue());
@@ -581,10 +582,9 @@ void BM_Step(benchmark::State& state, StepConfig config)
   if (!default_cues)
     engine_config.local_fraction = 0.0;  // as these configurations were measured before the local search
   if (config == StepConfig::DefaultNoSearch)
-  {
     engine_config.local_fraction = 0.0;
+  if (config == StepConfig::DefaultNoSearch || config == StepConfig::DefaultNoRecovery)
     engine_config.tracking_respawn_fraction = 0.0;
-  }
   FilterEngine engine(model, cues, engine_config);
   std::string error;
   if (!engine.learnTarget(s.frame(0), s.targetRoi(0), error))
@@ -615,6 +615,7 @@ void BM_Step(benchmark::State& state, StepConfig config)
 // histogram and outline; "histogram": the thesis's colour model alone).
 BENCHMARK_CAPTURE(BM_Step, Default, StepConfig::Default)->Apply(particleCounts);
 BENCHMARK_CAPTURE(BM_Step, Default_without_searches, StepConfig::DefaultNoSearch)->Apply(particleCounts);
+BENCHMARK_CAPTURE(BM_Step, Default_without_recovery, StepConfig::DefaultNoRecovery)->Apply(particleCounts);
 BENCHMARK_CAPTURE(BM_Step, Position3D_default_cues, StepConfig::Position3DDefault)->Apply(particleCounts);
 BENCHMARK_CAPTURE(BM_Step, Position3D_colour, StepConfig::Position3DColour)->Apply(particleCounts);
 BENCHMARK_CAPTURE(BM_Step, Position3D_histogram, StepConfig::Position3DHistogram)->Apply(particleCounts);
