@@ -215,7 +215,7 @@ BoxMatch matchBox(const StereoFrame& frame, const cv::Rect& box, const BoxMatchO
     }
     return near_score >= best_score - o.ambiguity_margin;
   };
-  int best = distinct.empty() ? 0 : distinct.front();
+  int best = distinct.front();  // never empty: the highest score is a peak
   size_t chosen = distinct.size();
   int rejected = -1, rejected_back = 0;
   for (size_t k = 0; k < distinct.size() && k < kMaxCandidates && m.scores[distinct[k]] >= o.min_score; ++k)

@@ -26,7 +26,8 @@ struct BoxMatchOptions
   /// Below this normalised correlation the best match is no match at all.
   double min_score = 0.5;
   /// A second peak (away from the best by more than half the box width) scoring within this of the best
-  /// makes the match ambiguous.
+  /// makes the match ambiguous; and a candidate whose right-image window matches the left image elsewhere better
+  /// than at the box by more than this fails the left-right check.
   double ambiguity_margin = 0.05;
   /// Smallest disparity accepted, pixels: below it depth is not measurable with this camera.
   double min_disparity = 0.5;
