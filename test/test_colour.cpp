@@ -402,6 +402,30 @@ TEST(Binner, GreyImagesAreBinnedAsGrey)
   EXPECT_THROW(binner.binImage(bad, bins), std::invalid_argument);
 }
 
+TEST(Binner, SinglePixelBinsAreTheImageBins)
+{
+  // pixelBins() reads the tables binImage() reads: the same bin for every pixel, at any gain and image type.
+  HsiBinner binner;
+  cv::RNG rng(17);
+  for (const int type : { CV_8UC3, CV_8UC4, CV_8UC1 })
+  {
+    cv::Mat img(23, 41, type);
+    rng.fill(img, cv::RNG::UNIFORM, 0, 256);
+    for (const double gain : { 1.0, 0.8, 1.3 })
+    {
+      cv::Mat bins;
+      binner.binImage(img, bins, gain);
+      const HsiBinner::PixelBins pixels = binner.pixelBins(img, gain);
+      for (int y = 0; y < img.rows; ++y)
+        for (int x = 0; x < img.cols; ++x)
+          ASSERT_EQ(pixels.at(x, y), bins.at<uint8_t>(y, x)) << "type " << type << " gain " << gain << " at " << x
+                                                             << "," << y;
+    }
+  }
+  cv::Mat bad(4, 4, CV_32FC1);
+  EXPECT_THROW(binner.pixelBins(bad), std::invalid_argument);
+}
+
 // ---------------------------------------------------------------------------------------------------
 // Histograms
 
@@ -938,6 +962,64 @@ TEST(ColourHSI, BinImageComputedOncePerViewPerFrame)
     m->evaluate(cache, hr, ll, sim);
   }
   EXPECT_EQ(cache.computeCount(), 4);
+}
+
+TEST(ColourHSI, AFewHypothesesFarApartScoreAsTheyDoAmongMany)
+{
+  // Four hypotheses across a wide image (as the engine's background places beside the best particle lie) are
+  // binned sample by sample, not through a bin image of everything between them: nothing is added to the cache,
+  // and each scores exactly what it scores among a thousand that make the whole image's bin image worth it.
+  cv::Mat left = makeBackground(cv::Size(640, 120), Background::TexturedGrey, 41);
+  drawDisc(left, 100, 60, 12, kOrange, 42);
+  drawDisc(left, 500, 62, 12, kOrange, 43);
+  for (const bool grey : { false, true })
+  {
+    cv::Mat image = left;
+    if (grey)
+      cv::cvtColor(left, image, cv::COLOR_BGR2GRAY);
+    auto m = makeModel();
+    FeatureCache cache;
+    cache.reset(makeFrame(image, image));
+    std::string error;
+    ASSERT_TRUE(m->learnTarget(cache, View::Left, discBox(100, 60, 12), error)) << error;
+    cache.reset(makeFrame(image, image));
+    cache.setGain(View::Left, 1.1);  // bins at a gain other than 1 alike
+
+    ImageHypotheses few;
+    for (const float u : { 40.0f, 101.5f, 333.0f, 498.0f })
+    {
+      few.u.push_back(u);
+      few.v.push_back(61.0f);
+      few.radius.push_back(12.0f);
+      few.valid.push_back(1);
+    }
+    Eigen::VectorXd ll_few(few.size()), sim_few(few.size());
+    const long before = cache.computeCount();
+    m->evaluate(cache, few, ll_few, sim_few);
+    EXPECT_EQ(cache.computeCount(), before) << "the sparse hypotheses were binned through the cache";
+
+    ImageHypotheses many = few;
+    for (int i = 0; i < 1000; ++i)
+    {
+      many.u.push_back(static_cast<float>(i % 600) + 20.0f);
+      many.v.push_back(30.0f + static_cast<float>(i % 60));
+      many.radius.push_back(12.0f);
+      many.valid.push_back(1);
+    }
+    Eigen::VectorXd ll_many(many.size()), sim_many(many.size());
+    m->evaluate(cache, many, ll_many, sim_many);
+    EXPECT_GT(cache.computeCount(), before) << "a thousand hypotheses should share a bin image";
+    for (int i = 0; i < few.size(); ++i)
+    {
+      EXPECT_EQ(sim_few[i], sim_many[i]) << (grey ? "grey" : "colour") << " hypothesis " << i;
+      EXPECT_EQ(ll_few[i], ll_many[i]) << (grey ? "grey" : "colour") << " hypothesis " << i;
+    }
+    if (!grey)
+    {
+      EXPECT_GT(sim_few[1], 0.6) << "the learned disc (at the gain of 1.1)";
+      EXPECT_GT(sim_few[1], sim_few[2] + 0.3) << "against the background";
+    }
+  }
 }
 
 TEST(ColourHSI, ATargetThatKeepsChangingHoldsOneMapPerViewAndTheMapFollowsIt)

@@ -18,6 +18,7 @@ namespace
 // A hypothesis needs at least this fraction of its samples inside the image to be judged at all:
 // a histogram of a few border pixels is too noisy to compare.
 constexpr int kMinInsideDenominator = 4;  // 1/4
+constexpr long kSparseFactor = 4;  // evaluate() bins sample by sample when the region has this many times more pixels
 
 }  // namespace
 
@@ -77,6 +78,7 @@ void ColourHSI::applyTunables(const Tunables& t)
   ring_.reset(binning_.bins(), t.surround_samples);
   ring_cos_.resize(t.surround_samples);
   ring_values_.resize(t.surround_samples);
+  grid_values_.resize(static_cast<size_t>(t.samples) * t.samples);
   ring_sin_.resize(t.surround_samples);
   for (int k = 0; k < t.surround_samples; ++k)
   {
@@ -219,10 +221,17 @@ void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen:
     extent(i, half, ring);
     return std::max(half, ring);
   });
-  // Once per view per frame (in the pixels not binned yet), shared by every hypothesis.
-  const cv::Mat& bins = binImage(cache, hyp.view, region);
-  const size_t step = bins.step[0];
-  const uint8_t* data = bins.data;
+  // Once per view per frame (in the pixels not binned yet), shared by every hypothesis. A few hypotheses spread
+  // far apart (the engine's background places, along the best particle's rows) are binned sample by sample
+  // instead: their samples are far fewer than the pixels between them, which a bin image of the region
+  // would all bin (about half of a default step's binning went there). The bins are the same either way.
+  int valid = 0;
+  for (int i = 0; i < n; ++i)
+    valid += hyp.valid[i] ? 1 : 0;
+  const bool sparse = static_cast<long>(region.area()) > kSparseFactor * static_cast<long>(valid) * (s * s + ring_n);
+  const cv::Mat* bins = sparse ? nullptr : &binImage(cache, hyp.view, region);
+  const HsiBinner::PixelBins pixels = sparse ? binner_->pixelBins(image, cache.gain(hyp.view)) : HsiBinner::PixelBins();
+  auto binAt = [&](int x, int y) { return sparse ? pixels.at(x, y) : bins->ptr<uint8_t>(y)[x]; };
 
   for (int i = 0; i < n; ++i)
   {
@@ -235,7 +244,19 @@ void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen:
     if (!window_.place(u, v, half, width, height, min_inside))
       continue;
 
-    candidate_.addGrid(data, step, window_.rows(), window_.numRows(), window_.cols(), window_.numCols());
+    if (sparse)
+    {
+      // In the order addGrid() reads them: the same histogram, summed in the same order.
+      uint8_t* values = grid_values_.data();
+      int m = 0;
+      for (int j = 0; j < window_.numRows(); ++j)
+        for (int k = 0; k < window_.numCols(); ++k)
+          values[m++] = pixels.at(window_.cols()[k], window_.rows()[j]);
+      candidate_.addValues(values, m);
+    }
+    else
+      candidate_.addGrid(bins->data, bins->step[0], window_.rows(), window_.numRows(), window_.cols(),
+                         window_.numCols());
     const double rho = candidate_.scoreAndClear(target_);
     double penalty = 0.0;
     if (ring_radius > 0.0f)
@@ -249,7 +270,7 @@ void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen:
         const int x = cvRound(u + ring_radius * ring_cos_[k]);
         const int y = cvRound(v + ring_radius * ring_sin_[k]);
         if (x >= 0 && x < width && y >= 0 && y < height)
-          values[m++] = data[y * step + x];
+          values[m++] = binAt(x, y);
       }
       ring_.addValues(values, m);
       penalty = surround_weight * ring_.scoreAndClear(target_);

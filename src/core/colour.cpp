@@ -219,12 +219,36 @@ const uint8_t* HsiBinner::gainTable(int step) const
   return table.data();
 }
 
+void HsiBinner::tables(int type, double gain, const uint8_t*& colour, std::array<uint8_t, 256>& grey) const
+{
+  if (type != CV_8UC3 && type != CV_8UC1 && type != CV_8UC4)
+    throw std::invalid_argument("HsiBinner: expected a CV_8UC3 (BGR), CV_8UC4 (BGRA) or CV_8UC1 image, got type " +
+                                std::to_string(type));
+  colour = lut_.data();
+  grey = gray_lut_;
+  const int step = std::isfinite(gain) ? static_cast<int>(std::lround(std::clamp(gain, 0.25, 4.0) * kGainSteps))
+                                       : kGainSteps;
+  if (step != kGainSteps && CV_MAT_CN(type) == 1)
+    for (int v = 0; v < 256; ++v)
+      grey[v] = gray_lut_[std::min(255L, std::lround(v * static_cast<double>(step) / kGainSteps))];
+  else if (step != kGainSteps)
+    colour = gainTable(step);
+}
+
+HsiBinner::PixelBins HsiBinner::pixelBins(const cv::Mat& image, double gain) const
+{
+  PixelBins out;
+  tables(image.type(), gain, out.colour_, out.grey_);
+  out.image_ = &image;
+  out.channels_ = image.channels();
+  return out;
+}
+
 void HsiBinner::binImage(const cv::Mat& image, cv::Mat& bins, double gain) const
 {
-  const int type = image.type();
-  if (type != CV_8UC3 && type != CV_8UC1 && type != CV_8UC4)
-    throw std::invalid_argument("HsiBinner::binImage: expected a CV_8UC3 (BGR), CV_8UC4 (BGRA) or CV_8UC1 image, got type " +
-                                std::to_string(type));
+  const uint8_t* lut = nullptr;
+  std::array<uint8_t, 256> grey;
+  tables(image.type(), gain, lut, grey);
   bins.create(image.size(), CV_8UC1);  // no reallocation when the cached buffer already fits
   int rows = image.rows;
   int cols = image.cols;
@@ -234,20 +258,8 @@ void HsiBinner::binImage(const cv::Mat& image, cv::Mat& bins, double gain) const
     cols *= rows;
     rows = 1;
   }
-  const uint8_t* lut = lut_.data();
   const int channels = image.channels();
-  const uint8_t* glut = gray_lut_.data();
-  std::array<uint8_t, 256> scaled_gray;
-  const int step = std::isfinite(gain) ? static_cast<int>(std::lround(std::clamp(gain, 0.25, 4.0) * kGainSteps))
-                                       : kGainSteps;
-  if (step != kGainSteps && channels == 1)
-  {
-    for (int v = 0; v < 256; ++v)
-      scaled_gray[v] = gray_lut_[std::min(255L, std::lround(v * static_cast<double>(step) / kGainSteps))];
-    glut = scaled_gray.data();
-  }
-  else if (step != kGainSteps)
-    lut = gainTable(step);
+  const uint8_t* glut = grey.data();
   for (int y = 0; y < rows; ++y)
   {
     const uint8_t* p = image.ptr<uint8_t>(y);

@@ -100,6 +100,29 @@ public:
   /// clipped at 255).
   void binImage(const cv::Mat& image, cv::Mat& bins, double gain = 1.0) const;
 
+  /// Bins of single pixels of one image at one gain, exactly as binImage() gives them: for a few hypotheses
+  /// spread over the image (the background places beside the best particle span whole rows), whose samples
+  /// are far fewer than the pixels between them. Valid while the binner and the image live.
+  class PixelBins
+  {
+  public:
+    /// Bin of pixel (x, y), which must lie in the image (not checked).
+    uint8_t at(int x, int y) const
+    {
+      const uint8_t* p = image_->ptr<uint8_t>(y) + static_cast<size_t>(x) * channels_;
+      return channels_ == 1 ? grey_[p[0]] : colour_[((p[0] >> 2) << 12) | ((p[1] >> 2) << 6) | (p[2] >> 2)];
+    }
+
+  private:
+    friend class HsiBinner;
+    const cv::Mat* image_ = nullptr;
+    int channels_ = 1;
+    const uint8_t* colour_ = nullptr;
+    std::array<uint8_t, 256> grey_{};
+  };
+  /// The pixel bins of `image` (as binImage() takes it) at `gain`.
+  PixelBins pixelBins(const cv::Mat& image, double gain = 1.0) const;
+
   /// The bin-index image of `view` of the cache's frame, through the cache under the key
   /// "hsi_bins/<binning>" (so every model with the same binning shares it), at the cache's gain for that view
   /// (FeatureCache::gain()); only rows [y0, y1) are guaranteed (FeatureCache::getRows()).
@@ -114,6 +137,10 @@ private:
   static constexpr size_t kMaxGainTables = 16;
   /// The table for gain step / kGainSteps: built on first use from the table at gain 1, then kept.
   const uint8_t* gainTable(int step) const;
+  /// The tables binImage() reads for an image of `channels` channels at `gain`: the colour table (gain 1's
+  /// or gainTable()'s) and the grey levels' (scaled by the gain for grey images). Throws for an unsupported
+  /// image type, naming it.
+  void tables(int type, double gain, const uint8_t*& colour, std::array<uint8_t, 256>& grey) const;
 
   HsiBinning binning_;
   std::string cache_key_;

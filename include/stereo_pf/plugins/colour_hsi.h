@@ -140,6 +140,7 @@ private:
   SparseHistogram ring_;          // the surround ring's histogram
   std::vector<float> ring_cos_, ring_sin_;  // unit circle, `surround_samples` points
   std::vector<uint8_t> ring_values_;        // scratch: one hypothesis's ring bins
+  std::vector<uint8_t> grid_values_;        // scratch: one hypothesis's window bins (evaluate()'s sparse path)
   float learned_radius_ = 0.0f;   // half the smaller side of the learning ROI: the 2D hypotheses' ring
   long target_version_ = 0;       // bumped when the target changes: the back-projection's cache tag
 };
