@@ -137,9 +137,9 @@ private:
   static constexpr size_t kMaxGainTables = 16;
   /// The table for gain step / kGainSteps: built on first use from the table at gain 1, then kept.
   const uint8_t* gainTable(int step) const;
-  /// The tables binImage() reads for an image of `channels` channels at `gain`: the colour table (gain 1's
-  /// or gainTable()'s) and the grey levels' (scaled by the gain for grey images). Throws for an unsupported
-  /// image type, naming it.
+  /// The tables binImage() reads for an image of OpenCV type `type` at `gain`: the colour table (gain 1's or
+  /// gainTable()'s) and the grey levels' (scaled by the gain for grey images). Throws std::invalid_argument for
+  /// a type other than CV_8UC1, CV_8UC3 and CV_8UC4, naming it.
   void tables(int type, double gain, const uint8_t*& colour, std::array<uint8_t, 256>& grey) const;
 
   HsiBinning binning_;
