@@ -726,7 +726,7 @@ StereoFrame blankFrame(Scene& scene, int k)
 
 TEST(EngineRecovery, AJumpAfterUnseenFramesArrivesFromWhereTheObjectWasLastSeen)
 {
-  // The pendulum tracked for 10 frames; then two blank frames (the track is kept, unseen: lost_frames is 3) over
+  // The pendulum tracked for 10 frames; then two blank frames (the track is kept, unseen: lost_frames is more) over
   // which the estimate drifts with the particles' velocities; then the ball again, found by the searches. The
   // jumped particles' velocity is the way from the last estimate that saw the object over the time since, not
   // from the drifted estimate over one frame: with that, a ball the nodelet test showed again after its last
@@ -735,7 +735,7 @@ TEST(EngineRecovery, AJumpAfterUnseenFramesArrivesFromWhereTheObjectWasLastSeen)
   auto state = std::make_shared<ArrivalNoting>();
   state->initialize("state_model", Parameters());
   const EngineConfig config;
-  ASSERT_EQ(config.lost_frames, 3);
+  ASSERT_GT(config.lost_frames, 2);
   FrameResult seen;
   std::unique_ptr<FilterEngine> tracking = trackingTheFirstTenFrames(scene, state, config, seen);
   FilterEngine& engine = *tracking;
@@ -798,7 +798,8 @@ int framesToFindTheBallAgain(const EngineConfig& config, int shown, double& dist
     r = engine.step(back);
     if (r.state == TrackState::Tracking)
     {
-      EXPECT_LT((r.estimate.position - scene.renderer().targetPosition(shown)).norm(), 0.03);
+      // On the ball: within its radius (3.5 cm) of its centre.
+      EXPECT_LT((r.estimate.position - scene.renderer().targetPosition(shown)).norm(), 0.035);
       return k;
     }
   }
@@ -1045,19 +1046,29 @@ std::vector<TrackState> statesUnder(const std::vector<double>& script)
 TEST(EngineTrackState, UnsureFramesNeitherCountNorBreakARunOfUnseenOnes)
 {
   // Evidence flickering between low (0.3 < lost_similarity) and unsure (0.55, between the thresholds): lost at the
-  // third low frame, although no two low frames are adjacent (a track stayed "tracking" metres off a real pitch's
-  // ball that way).
+  // lost_frames-th low frame, although no two low frames are adjacent (a track stayed "tracking" metres off a real
+  // pitch's ball that way).
   const EngineConfig defaults;
-  ASSERT_EQ(defaults.lost_frames, 3);
+  const int lost = defaults.lost_frames;
+  ASSERT_GE(lost, 2);
   ASSERT_LT(0.3, defaults.lost_similarity);
   ASSERT_TRUE(0.55 >= defaults.lost_similarity && 0.55 < defaults.found_similarity);
   ASSERT_GE(0.9, defaults.found_similarity);
-  const std::vector<TrackState> flicker = statesUnder({ 0.3, 0.55, 0.3, 0.55, 0.3, 0.55 });
+  std::vector<double> script;
+  for (int k = 0; k < lost; ++k)
+    script.insert(script.end(), { 0.3, 0.55 });
+  const std::vector<TrackState> flicker = statesUnder(script);
   ASSERT_EQ(flicker[9], TrackState::Tracking);
-  EXPECT_EQ(flicker[13], TrackState::Tracking) << "two low frames";
-  EXPECT_EQ(flicker[14], TrackState::Lost) << "the third low frame";
+  EXPECT_EQ(flicker[10 + 2 * (lost - 2) + 1], TrackState::Tracking) << lost - 1 << " low frames";
+  EXPECT_EQ(flicker[10 + 2 * (lost - 1)], TrackState::Lost) << "low frame " << lost;
   // A seen frame (0.9) between them does break the run: the track goes on.
-  const std::vector<TrackState> interrupted = statesUnder({ 0.3, 0.55, 0.3, 0.9, 0.3, 0.55 });
+  std::vector<double> interrupted_script;
+  for (int k = 0; k < lost - 1; ++k)
+    interrupted_script.insert(interrupted_script.end(), { 0.3, 0.55 });
+  interrupted_script.push_back(0.9);
+  for (int k = 0; k < lost - 1; ++k)
+    interrupted_script.insert(interrupted_script.end(), { 0.3, 0.55 });
+  const std::vector<TrackState> interrupted = statesUnder(interrupted_script);
   for (size_t k = 9; k < interrupted.size(); ++k)
     EXPECT_EQ(interrupted[k], TrackState::Tracking) << "frame " << k;
 }
@@ -1067,7 +1078,7 @@ TEST(EngineTrackState, AnObjectOneCameraStillSeesIsUnsureNotUnseen)
   // From frame 10 the right view's cues score 0.05 (the object before something that hides it from them, as a
   // real pitch's ball before a bright panel seen by the right camera only) while the left view's score 0.8: their
   // mean is below lost_similarity, but the left camera sees the object. Unsure, so the track is kept until
-  // unsure_frames of them; with one_view_unsure off, lost at the third such frame.
+  // unsure_frames of them; with one_view_unsure off, lost at the lost_frames-th such frame.
   const EngineConfig defaults;
   ASSERT_TRUE(defaults.one_view_unsure);
   ASSERT_LT(0.5 * (0.8 + 0.05), defaults.lost_similarity);
@@ -1082,7 +1093,7 @@ TEST(EngineTrackState, AnObjectOneCameraStillSeesIsUnsureNotUnseen)
   off.one_view_unsure = false;
   const std::vector<FrameResult> lost = resultsUnder(left, off, right);
   EXPECT_EQ(lost[10].support, Support::LowEvidence);
-  EXPECT_EQ(lost[12].state, TrackState::Lost) << "the third low frame";
+  EXPECT_EQ(lost[10 + off.lost_frames - 1].state, TrackState::Lost) << "low frame " << off.lost_frames;
   // A view between the thresholds but at least midway (0.6) still sees it: unsure. Neither view seeing it (0.5
   // and 0.05: each below midway between lost_similarity and found_similarity) is unseen, as before.
   const double midway = 0.5 * (defaults.lost_similarity + defaults.found_similarity);
@@ -1092,7 +1103,7 @@ TEST(EngineTrackState, AnObjectOneCameraStillSeesIsUnsureNotUnseen)
   EXPECT_EQ(weak[12].state, TrackState::Tracking);
   const std::vector<FrameResult> neither = resultsUnder(std::vector<double>(12, 0.5), defaults, right);
   EXPECT_EQ(neither[10].support, Support::LowEvidence);
-  EXPECT_EQ(neither[12].state, TrackState::Lost) << "the third low frame";
+  EXPECT_EQ(neither[10 + defaults.lost_frames - 1].state, TrackState::Lost) << "low frame " << defaults.lost_frames;
 }
 
 TEST(EngineTrackState, ATrackThatStaysUnsureIsLostAfterUnsureFrames)
@@ -1164,61 +1175,63 @@ TEST(EngineTrackState, ALookThatChangesSlowlyIsKeptBelowTheHoldMargin)
 
 TEST(EngineTrackState, ALookAlikeScoringBelowTheObjectIsNotTakenForItOnceLost)
 {
-  // Lost (three frames at 0.1), then something scoring 0.8 (well above found_similarity, but more than
+  // Lost (lost_frames frames at 0.1), then something scoring 0.8 (well above found_similarity, but more than
   // reacquire_margin below what the object scored when its track began) for ten frames, then the object itself.
   const EngineConfig defaults;
   ASSERT_LT(defaults.reacquire_margin, 0.5);
-  std::vector<double> script{ 0.1, 0.1, 0.1 };
-  script.resize(13, 0.8);
-  script.resize(15, 1.0);
+  const int lost = defaults.lost_frames;
+  std::vector<double> script(lost, 0.1);
+  script.resize(lost + 10, 0.8);
+  script.resize(lost + 12, 1.0);
   const std::vector<FrameResult> r = resultsUnder(script);
   const double reference = r[0].evidence;  // the first frame of the track, from the box
   ASSERT_EQ(r[0].state, TrackState::Tracking);
   ASSERT_GT(reference - defaults.reacquire_margin, 0.8) << "the pendulum's ball scores " << reference;
-  EXPECT_EQ(r[12].state, TrackState::Lost);
-  for (int k = 13; k < 23; ++k)
+  EXPECT_EQ(r[10 + lost - 1].state, TrackState::Lost);
+  for (int k = 10 + lost; k < 10 + lost + 10; ++k)
   {
     EXPECT_EQ(r[k].state, TrackState::Lost) << "frame " << k << ": the look-alike was taken for the object";
     EXPECT_EQ(r[k].support, Support::Unsure) << "frame " << k;
   }
-  EXPECT_EQ(r[24].state, TrackState::Tracking) << "the object itself, two frames";
+  EXPECT_EQ(r[10 + lost + 11].state, TrackState::Tracking) << "the object itself, two frames";
   // With the margin at 1 only found_similarity holds: the look-alike is found in found_frames.
   EngineConfig loose;
   loose.reacquire_margin = 1.0;
   const std::vector<FrameResult> taken = resultsUnder(script, loose);
-  EXPECT_EQ(taken[12].state, TrackState::Lost);
-  EXPECT_EQ(taken[12 + loose.found_frames].state, TrackState::Tracking);
+  EXPECT_EQ(taken[10 + lost - 1].state, TrackState::Lost);
+  EXPECT_EQ(taken[10 + lost - 1 + loose.found_frames].state, TrackState::Tracking);
   // A look-alike that scores as the object did on every other frame only (0.8 between) is not found either: an
   // unsure frame breaks the run of seen ones while the track is being found again.
-  std::vector<double> flicker{ 0.1, 0.1, 0.1 };
+  std::vector<double> flicker(lost, 0.1);
   for (int k = 0; k < 10; ++k)
     flicker.push_back(k % 2 ? 0.8 : 1.0);
   const std::vector<FrameResult> f = resultsUnder(flicker);
-  for (int k = 13; k < 23; ++k)
+  for (int k = 10 + lost; k < 10 + lost + 10; ++k)
     EXPECT_EQ(f[k].state, TrackState::Lost) << "frame " << k;
 }
 
 TEST(EngineTrackState, AnObjectScoringLessThanOnItsFirstFrameIsFoundAgainAfterAnOcclusion)
 {
   // Tracked at 0.9 for 40 frames (below what it scored on the first frame after the box, where it was learned),
-  // hidden (three frames at 0.1), then back at 0.87 (another side of it turned to the camera): found again within
+  // hidden (lost_frames frames at 0.1), then back at 0.87 (another side of it turned to the camera): found again within
   // found_frames of its return, as re-acquisition is held to what the object scored in its last track's seen
   // frames. Held to the first frame's evidence it was never found again (a drawn scene: a textured ball scoring
   // 0.94-0.95 before an occluder and 0.85-0.88 after it stayed lost for the 25 frames it was in view). Something
   // scoring 0.8 after the same track is still not taken for it.
   const EngineConfig defaults;
+  const int lost = defaults.lost_frames;
   std::vector<double> script(40, 0.9);
-  script.resize(43, 0.1);
+  script.resize(40 + lost, 0.1);
   std::vector<double> lookalike = script;
-  script.resize(53, 0.87);
-  lookalike.resize(53, 0.8);
+  script.resize(50 + lost, 0.87);
+  lookalike.resize(50 + lost, 0.8);
   const std::vector<FrameResult> r = resultsUnder(script);
   const double reference = r[0].evidence;
   ASSERT_GT(reference - defaults.reacquire_margin, 0.87) << "the pendulum's ball scores " << reference;
-  EXPECT_EQ(r[10 + 42].state, TrackState::Lost);
-  EXPECT_EQ(r[10 + 42 + defaults.found_frames].state, TrackState::Tracking) << "found again";
+  EXPECT_EQ(r[10 + 40 + lost - 1].state, TrackState::Lost);
+  EXPECT_EQ(r[10 + 40 + lost - 1 + defaults.found_frames].state, TrackState::Tracking) << "found again";
   const std::vector<FrameResult> l = resultsUnder(lookalike);
-  for (int k = 10 + 42; k < 10 + 53; ++k)
+  for (int k = 10 + 40 + lost - 1; k < 10 + 50 + lost; ++k)
     EXPECT_EQ(l[k].state, TrackState::Lost) << "frame " << k << ": the look-alike was taken for the object";
 }
 

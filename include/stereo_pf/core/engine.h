@@ -70,7 +70,7 @@ struct EngineConfig
   double found_similarity = 0.65;     ///< best mean cue similarity at or above this counts as "object seen"
   double lost_similarity = 0.45;      ///< below this counts as "object not seen"
   int found_frames = 2;               ///< seen frames, no unseen one between, to switch to Tracking
-  int lost_frames = 3;                ///< unseen frames, no seen one between, to switch to Lost
+  int lost_frames = 4;                ///< unseen frames, no seen one between, to switch to Lost
   /// Unsure frames in a row (neither seen nor unseen) after which a track is Lost too (0: never): a track
   /// whose evidence stays between the thresholds cannot vouch for its estimate, which drifts onto the
   /// background as soon as that scores as well.
