@@ -940,7 +940,7 @@ TEST(EngineRecovery, ATrackIsNotPredictedAcrossAGapOfDroppedFrames)
   // the whole gap, the cloud spread over metres: at none of these 8 seeds was the first frame after the gap within
   // 5 cm (at one the ball was tracked again only 8 frames later), and the estimates published meanwhile were 7 cm to
   // 14 m off (over 1 m at 3 seeds: a small hypothesis far behind the ball, its windows inside the ball's image in
-  // both views, held the track). The prediction stops at lost_frames + 0.5 frame periods: the ball is tracked on
+  // both views, held the track). The prediction stops at 3.5 frame periods: the ball is tracked on
   // the first frame after the gap, never more than 5 cm off.
   Scene scene("pendulum_uncluttered.yaml");
   const double period = scene.renderer().stamp(1) - scene.renderer().stamp(0);

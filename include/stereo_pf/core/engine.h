@@ -324,7 +324,7 @@ private:
   /// x its speed there + reacquire_min_speed) x the time since; infinite when there is no bound.
   double reacquireReach(double stamp) const;
   /// Note the interval `dt` since the last frame and return the interval to predict over: while tracking, at most
-  /// lost_frames + 0.5 frame periods (framePeriod).
+  /// kMaxPredictedPeriods frame periods (framePeriod).
   double predictionInterval(double dt);
   /// The camera's frame period: the median of the last intervals (nominal_dt until three are known).
   double framePeriod() const;
@@ -387,6 +387,7 @@ private:
   double last_stamp_ = 0.0;
   /// The last intervals between increasing stamps (a ring; interval_count_ of them known): the camera's period.
   static constexpr int kFrameIntervals = 9;
+  static constexpr double kMaxPredictedPeriods = 3.5;  ///< the longest interval a track is predicted over, in periods
   std::array<double, kFrameIntervals> frame_intervals_{};
   int interval_next_ = 0;
   int interval_count_ = 0;
