@@ -238,6 +238,12 @@ BoxMatch matchBox(const StereoFrame& frame, const cv::Rect& box, const BoxMatchO
   std::ostringstream why;
   why.precision(2);
   why.setf(std::ios::fixed);
+  // A refusal still reports the scores along the rows (BoxMatch::scores), as a match does.
+  auto refuse = [&]() {
+    BoxMatch f = failure(box, why.str());
+    f.scores = m.scores;
+    return f;
+  };
   if ((m.score < o.min_score || chosen == distinct.size()) && o.ring_weight > 0.0)
   {
     // The ring carries the outline against what lies behind the object; close up, the two cameras see
@@ -261,18 +267,14 @@ BoxMatch matchBox(const StereoFrame& frame, const cv::Rect& box, const BoxMatchO
           << std::atan2(static_cast<double>(best), g.fx()) * 180.0 / M_PI
           << " degrees apart (if it is that close, its sides and what lies behind it differ between the views: "
              "teach it from further away)";
-    BoxMatch f = failure(box, why.str());
-    f.scores = m.scores;
-    return f;
+    return refuse();
   }
   if (chosen == distinct.size())
   {
     why << "no consistent match in the right image: its best candidate, disparity " << rejected << " (correlation "
         << m.scores[rejected] << "), shows something that matches the left image better at disparity "
         << rejected_back << " (something else in the view, not the box's object)";
-    BoxMatch f = failure(box, why.str());
-    f.scores = m.scores;
-    return f;
+    return refuse();
   }
   // The strongest other candidate not shown to be something else: one about as good as the best is checked too.
   for (size_t k = chosen + 1; k < distinct.size(); ++k)
@@ -290,8 +292,7 @@ BoxMatch matchBox(const StereoFrame& frame, const cv::Rect& box, const BoxMatchO
     why << "ambiguous: it matches the right image at disparity " << best << " (correlation " << m.score
         << ") and at " << m.second_disparity << " (" << m.second_score
         << "); draw a tighter box or teach the target on a frame where only one such object is in view";
-    BoxMatch f = failure(box, why.str());
-    f.scores = m.scores;
+    BoxMatch f = refuse();
     f.second_score = m.second_score;
     f.second_disparity = m.second_disparity;
     return f;
