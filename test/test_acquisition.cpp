@@ -313,6 +313,45 @@ TEST(MatchBox, ACandidateTheLeftImageShowsElsewhereIsPassedOver)
   EXPECT_NE(none.error.find(stereo_pf::boxText(box)), std::string::npos) << none.error;
 }
 
+TEST(MatchBox, ABackdropFarBehindALooseBoxIsNotTakenForTheObject)
+{
+  // A plain dark disc (radius 14 px) in a loose 40 px box, at disparity 30, before a textured wall far behind it
+  // (disparity 0: the same in both images) that has a dark patch of its own where the disc hides it. Most of what
+  // the box holds that varies is the wall, and at disparity 0 the right image shows that patch where the disc
+  // was: the wall matches best. Taken for the object, it makes the object 40 baselines across (and infinitely
+  // far); the disc's own match, which implies 1.3 baselines, is taken instead.
+  cv::RNG rng(5);
+  cv::Mat wall(240, 640, CV_32F);
+  rng.fill(wall, cv::RNG::UNIFORM, 88.0, 168.0);
+  cv::GaussianBlur(wall, wall, cv::Size(9, 9), 0.0);
+  for (int y = 0; y < wall.rows; ++y)
+    for (int x = 0; x < wall.cols; ++x)
+    {
+      const double r2 = (x - 420.0) * (x - 420.0) + (y - 120.0) * (y - 120.0);
+      wall.at<float>(y, x) -= static_cast<float>(60.0 * std::exp(-r2 / 250.0));  // the dark patch behind the disc
+    }
+  cv::Mat left = wall.clone(), right = wall.clone();
+  cv::circle(left, cv::Point(420, 120), 14, cv::Scalar(98), cv::FILLED);
+  cv::circle(right, cv::Point(390, 120), 14, cv::Scalar(98), cv::FILLED);
+  StereoFrame f;
+  left.convertTo(f.left, CV_8U);
+  right.convertTo(f.right, CV_8U);
+  f.geometry = stereo_pf::StereoGeometry(400.0, 400.0, 320.0, 120.0, 0.1, 640, 240);
+  const cv::Rect box(400, 100, 40, 40);
+  // Without the preference the wall is taken (here: too far to measure), as before it.
+  stereo_pf::BoxMatchOptions off;
+  off.max_size_baselines = 0.0;
+  const BoxMatch wall_match = matchBox(f, box, off);
+  EXPECT_FALSE(wall_match.ok && std::abs(wall_match.disparity - 30.0) < 0.5) << "the disc is matched anyway";
+  const BoxMatch m = matchBox(f, box);
+  ASSERT_TRUE(m.ok) << m.error;
+  std::cout << "[ figures  ] correlation at disparity 0 (the wall) " << m.scores[0] << ", at 30 (the disc) "
+            << m.scores[30] << "; matched at " << m.disparity << "\n";
+  EXPECT_GT(m.scores[0], m.scores[30]) << "the wall must correlate better for this to test anything";
+  EXPECT_NEAR(m.disparity, 30.0, 0.5);
+  EXPECT_NEAR(m.centre.z(), 400.0 * 0.1 / 30.0, 0.02);
+}
+
 namespace
 {
 /// The default cues and Velocity3D configured by `c`, learning the target from frame 0's box of `renderer`'s scene:

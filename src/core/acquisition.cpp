@@ -215,6 +215,10 @@ BoxMatch matchBox(const StereoFrame& frame, const cv::Rect& box, const BoxMatchO
     }
     return near_score >= best_score - o.ambiguity_margin;
   };
+  // The object's size across in baselines that a candidate implies (the box's size over the disparity).
+  auto plausible = [&](int d) {
+    return !(o.max_size_baselines > 0.0) || std::max(box.width, box.height) <= o.max_size_baselines * d;
+  };
   int best = distinct.front();  // never empty: the highest score is a peak
   size_t chosen = distinct.size();
   int rejected = -1, rejected_back = 0;
@@ -223,9 +227,16 @@ BoxMatch matchBox(const StereoFrame& frame, const cv::Rect& box, const BoxMatchO
     int back = 0;
     if (backCheck(distinct[k], back))
     {
-      chosen = k;
-      best = distinct[k];
-      break;
+      // The first that passes, unless a later one that passes implies a plausible size and it does not.
+      const bool sized = plausible(distinct[k]);
+      if (chosen == distinct.size() || sized)
+      {
+        chosen = k;
+        best = distinct[k];
+      }
+      if (sized)
+        break;
+      continue;
     }
     if (rejected < 0)
     {
@@ -277,10 +288,14 @@ BoxMatch matchBox(const StereoFrame& frame, const cv::Rect& box, const BoxMatchO
     return refuse();
   }
   // The strongest other candidate not shown to be something else: one about as good as the best is checked too.
+  // Beside a match of a plausible size, one implying a larger object is no rival (it would not be taken).
+  const bool sized = plausible(best);
   for (size_t k = chosen + 1; k < distinct.size(); ++k)
   {
     const int d = distinct[k];
     int back = 0;
+    if (sized && !plausible(d))
+      continue;
     if (m.scores[d] > m.score - o.ambiguity_margin && k <= chosen + kMaxCandidates && !backCheck(d, back))
       continue;
     m.second_score = m.scores[d];
@@ -310,7 +325,7 @@ BoxMatch matchBox(const StereoFrame& frame, const cv::Rect& box, const BoxMatchO
   if (d < o.min_disparity)
   {
     why << "too far to measure: disparity " << d << " px is below " << o.min_disparity << " px";
-    return failure(box, why.str());
+    return refuse();
   }
 
   const StereoGeometry& g = frame.geometry;

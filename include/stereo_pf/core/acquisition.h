@@ -31,6 +31,13 @@ struct BoxMatchOptions
   double ambiguity_margin = 0.05;
   /// Smallest disparity accepted, pixels: below it depth is not measurable with this camera.
   double min_disparity = 0.5;
+  /// Largest object, in stereo baselines across, that a candidate may imply before a smaller one is preferred: a
+  /// box's width over a disparity is the object's width over the baseline, whatever the camera. A loose box
+  /// around a plain object before a textured backdrop far behind it can match that backdrop best (the object's
+  /// flat inside carries little of the correlation); taken for the object, the backdrop makes it tens of
+  /// baselines across and as far away. A candidate passing the same checks that implies at most this is taken
+  /// instead; when none does, the best stands. 0: off.
+  double max_size_baselines = 20.0;
 };
 
 /// Outcome of matching a left-image box in the right image.
@@ -66,6 +73,9 @@ struct BoxMatch
 /// scene, a small grey box seen 14 degrees apart by a 50 cm baseline scored 0.78 against a smooth backdrop at 4
 /// times its disparity, below 0.5 at its own: it was tracked 1.5 m off from the first frame, and is now refused with
 /// that reason), and the next candidate is taken. The peaks are checked best first, at most four of them.
+///
+/// Of the candidates that pass the check, one implying an object at most `max_size_baselines` across is preferred to
+/// a better-scoring one implying a larger object.
 ///
 /// The match fails, with an error naming the box, when the box is unusable, the best score is below `min_score`,
 /// no candidate passes the left-right check, another peak that passes it (or was not checked) scores within
