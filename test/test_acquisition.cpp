@@ -117,6 +117,7 @@ TEST(MatchBox, AcquisitionWithinThreePercentOnARenderedScene)
   ASSERT_TRUE(m.ok) << m.error;
   EXPECT_LT(std::abs(m.centre.z() - 1.4) / 1.4, 0.03);
   EXPECT_LT(std::abs(m.radius - 0.05) / 0.05, 0.03);
+  EXPECT_TRUE(m.warning.empty()) << m.warning;
 }
 
 TEST(MatchBox, GreyImagesAndAWhiteBall)
@@ -350,6 +351,10 @@ TEST(MatchBox, ABackdropFarBehindALooseBoxIsNotTakenForTheObject)
   EXPECT_GT(m.scores[0], m.scores[30]) << "the wall must correlate better for this to test anything";
   EXPECT_NEAR(m.disparity, 30.0, 0.5);
   EXPECT_NEAR(m.centre.z(), 400.0 * 0.1 / 30.0, 0.02);
+  // The user hears of it: the box shows mostly the wall, and the cues learn from the box.
+  EXPECT_NE(m.warning.find("box 400,100,40,40"), std::string::npos) << m.warning;
+  EXPECT_NE(m.warning.find("tight"), std::string::npos) << m.warning;
+  std::cout << "[ warning  ] " << m.warning << "\n";
 }
 
 namespace

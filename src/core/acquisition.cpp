@@ -222,6 +222,7 @@ BoxMatch matchBox(const StereoFrame& frame, const cv::Rect& box, const BoxMatchO
   int best = distinct.front();  // never empty: the highest score is a peak
   size_t chosen = distinct.size();
   int rejected = -1, rejected_back = 0;
+  int oversized = -1;  // a candidate that passed but implied too large an object, when a later one is taken
   for (size_t k = 0; k < distinct.size() && k < kMaxCandidates && m.scores[distinct[k]] >= o.min_score; ++k)
   {
     int back = 0;
@@ -229,6 +230,8 @@ BoxMatch matchBox(const StereoFrame& frame, const cv::Rect& box, const BoxMatchO
     {
       // The first that passes, unless a later one that passes implies a plausible size and it does not.
       const bool sized = plausible(distinct[k]);
+      if (sized && chosen != distinct.size())
+        oversized = best;
       if (chosen == distinct.size() || sized)
       {
         chosen = k;
@@ -329,6 +332,25 @@ BoxMatch matchBox(const StereoFrame& frame, const cv::Rect& box, const BoxMatchO
   }
 
   const StereoGeometry& g = frame.geometry;
+  if (oversized >= 0)
+  {
+    // Taken, but the user should know: what the box holds is mostly what lies behind the object, and the cues
+    // learn from the box.
+    std::ostringstream note;
+    note.precision(2);
+    note.setf(std::ios::fixed);
+    note << "box " << boxText(box) << ": its best match along the rows, disparity " << oversized << " (correlation "
+         << m.scores[oversized] << "), would put the object ";
+    if (oversized > 0)
+      note << "at " << g.fx() * g.baseline() / oversized << " m, "
+           << static_cast<double>(std::max(box.width, box.height)) / oversized << " baselines across";
+    else
+      note << "infinitely far";
+    note << "; taken at disparity " << d << " (" << m.score
+         << ") instead. The box shows mostly what lies behind the object: a box tight around it teaches the object, "
+            "not its surroundings";
+    m.warning = note.str();
+  }
   m.ok = true;
   m.disparity = d;
   m.left = Pixel{ cu, cv_ };

@@ -253,6 +253,8 @@ public:
     if (!engine().learnTarget(frame, roi, error))
       return false;
     const stereo_pf::BoxMatch& a = engine().acquisition();
+    if (a.ok && !a.warning.empty())
+      std::fprintf(stderr, "track_bag: warning: %s\n", a.warning.c_str());
     if (a.ok && !quiet_)
       std::printf("acquired: disparity %.2f px (score %.2f), centre (%.3f, %.3f, %.3f) m, radius %.2f cm\n",
                   a.disparity, a.score, a.centre.x(), a.centre.y(), a.centre.z(), 100.0 * a.radius);

@@ -45,6 +45,7 @@ struct BoxMatch
 {
   bool ok = false;              ///< false: `error` says why (no match, ambiguous, bad box, too far)
   std::string error;            ///< what went wrong, naming the box
+  std::string warning;          ///< a match made, but one the user should hear of (naming the box); else empty
   double disparity = 0.0;       ///< sub-pixel disparity of the box centre, pixels (left u - right u)
   double score = 0.0;           ///< normalised correlation of the best match, [-1, 1]
   double second_score = -1.0;   ///< best score of any other peak (-1 when there is none)
