@@ -319,8 +319,8 @@ TEST(MatchBox, ABackdropFarBehindALooseBoxIsNotTakenForTheObject)
   // A plain dark disc (radius 14 px) in a loose 40 px box, at disparity 30, before a textured wall far behind it
   // (disparity 0: the same in both images) that has a dark patch of its own where the disc hides it. Most of what
   // the box holds that varies is the wall, and at disparity 0 the right image shows that patch where the disc
-  // was: the wall matches best. Taken for the object, it makes the object 40 baselines across (and infinitely
-  // far); the disc's own match, which implies 1.3 baselines, is taken instead.
+  // was: the wall matches best. Taken for the object, it puts the object infinitely far (a disparity of 1 px
+  // would make it 40 baselines across); the disc's own match, which implies 1.3 baselines, is taken instead.
   cv::RNG rng(5);
   cv::Mat wall(240, 640, CV_32F);
   rng.fill(wall, cv::RNG::UNIFORM, 88.0, 168.0);
