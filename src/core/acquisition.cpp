@@ -215,10 +215,9 @@ BoxMatch matchBox(const StereoFrame& frame, const cv::Rect& box, const BoxMatchO
     }
     return near_score >= best_score - o.ambiguity_margin;
   };
-  // The object's size across in baselines that a candidate implies (the box's size over the disparity).
-  auto plausible = [&](int d) {
-    return !(o.max_size_baselines > 0.0) || std::max(box.width, box.height) <= o.max_size_baselines * d;
-  };
+  // The object's size across in baselines that a candidate implies is the box's size over the disparity.
+  const int extent = std::max(box.width, box.height);
+  auto plausible = [&](int d) { return !(o.max_size_baselines > 0.0) || extent <= o.max_size_baselines * d; };
   int best = distinct.front();  // never empty: the highest score is a peak
   size_t chosen = distinct.size();
   int rejected = -1, rejected_back = 0;
@@ -335,21 +334,18 @@ BoxMatch matchBox(const StereoFrame& frame, const cv::Rect& box, const BoxMatchO
   if (oversized >= 0)
   {
     // Taken, but the user should know: what the box holds is mostly what lies behind the object, and the cues
-    // learn from the box.
-    std::ostringstream note;
-    note.precision(2);
-    note.setf(std::ios::fixed);
-    note << "box " << boxText(box) << ": its best match along the rows, disparity " << oversized << " (correlation "
-         << m.scores[oversized] << "), would put the object ";
+    // learn from the box. (`why` is still empty: nothing was refused.)
+    why << "box " << boxText(box) << ": its best match along the rows, disparity " << oversized << " (correlation "
+        << m.scores[oversized] << "), would put the object ";
     if (oversized > 0)
-      note << "at " << g.fx() * g.baseline() / oversized << " m, "
-           << static_cast<double>(std::max(box.width, box.height)) / oversized << " baselines across";
+      why << "at " << g.fx() * g.baseline() / oversized << " m, " << static_cast<double>(extent) / oversized
+          << " baselines across";
     else
-      note << "infinitely far";
-    note << "; taken at disparity " << d << " (" << m.score
-         << ") instead. The box shows mostly what lies behind the object: a box tight around it teaches the object, "
-            "not its surroundings";
-    m.warning = note.str();
+      why << "infinitely far";
+    why << "; taken at disparity " << d << " (" << m.score
+        << ") instead. The box shows mostly what lies behind the object: a box tight around it teaches the object, "
+           "not its surroundings";
+    m.warning = why.str();
   }
   m.ok = true;
   m.disparity = d;

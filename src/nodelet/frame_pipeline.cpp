@@ -187,6 +187,7 @@ void FramePipeline::learnRequestedTarget(const RoiRequest& request, const Stereo
   }
   else
     ok = engine.learnTarget(frame, request.roi, error);
+  const std::string& warning = engine.acquisition().warning;  // of this box when ok (learnTarget set it)
   if (ok)
   {
     engine.reset();  // a new target: start afresh (acquired at its box when engine/acquire, else searched for)
@@ -194,13 +195,12 @@ void FramePipeline::learnRequestedTarget(const RoiRequest& request, const Stereo
     last_tracked_.reset();
     ROS_INFO_NAMED(name_, "target learned from %dx%d at (%d, %d) of the left image of the frame stamped %.3f",
                  request.roi.width, request.roi.height, request.roi.x, request.roi.y, stamp);
-    if (!engine.acquisition().warning.empty())
-      ROS_WARN_NAMED(name_, "%s", engine.acquisition().warning.c_str());
+    if (!warning.empty())
+      ROS_WARN_NAMED(name_, "%s", warning.c_str());
     input_.stopRoiTopic();
   }
   else
     ROS_ERROR_NAMED(name_, "cannot learn the target (the previous one, if any, is kept): %s", error.c_str());
-  const std::string& warning = engine.acquisition().warning;
   requests_.answer(request.id, ok,
                    ok ? "target learned from the frame stamped " + std::to_string(stamp) +
                             (warning.empty() ? std::string() : "; warning: " + warning) :
