@@ -964,7 +964,12 @@ TEST(Tracker, LateFramesAreDroppedAndTimeGoneBackRestarts)
     ASSERT_TRUE(h.stepStatus(h.frame(k + i), status)) << "no ~status after the late frames";
     EXPECT_EQ(status.state, stereo_pf::TrackStatus::TRACKING);
     ASSERT_TRUE(h.targetOf(h.lastStamp(), p));
-    EXPECT_LT(distance(p, h.frame(k + i).truth), 0.05) << "the track moved after the late frames";
+    // (What the frame said, for a failure seen once in CI and not reproduced since: the track 1.0-1.6 m off from
+    // the first frame after the late ones on, then lost.)
+    EXPECT_LT(distance(p, h.frame(k + i).truth), 0.05)
+        << "the track moved after the late frames: frame k + " << i << " (k = " << k << "), " << status.support
+        << ", evidence " << status.evidence << ", ESS " << status.ess << ", " << status.frames_in_state
+        << " frames in this state; dropped " << status.frames_dropped << " of " << status.frames_received;
   }
   EXPECT_EQ(h.counterReaching("dropped: out of order", before + 2), before + 2);
 
