@@ -1013,8 +1013,8 @@ TEST(EngineRecovery, ATrackLeftBehindIsLostNotKeptByTheJumpsItRefuses)
   // below the bar a jump must pass (reacquire_margin below the object's own evidence). Their evidence kept each
   // recovery frame "seen", so the track stayed "tracking" while it ran off on its velocity: 5-8 of these 20 frames
   // were published more than 10 cm off at 4 of the 6 seeds (track_bag on the test bag played so: at seed 1 every
-  // frame, up to 1.9 m off; the nodelet test's one unexplained failure looked alike: 1.0-1.6 m). A refused jump is no
-  // evidence now: the track is followed to the ball or lost within lost_frames.
+  // frame, up to 1.9 m off). A refused jump is no evidence now: the track is followed to the ball or lost within
+  // lost_frames.
   Scene scene("pendulum_uncluttered.yaml");
   const double period = scene.renderer().stamp(1) - scene.renderer().stamp(0);
   for (unsigned long seed = 1; seed <= 6; ++seed)
