@@ -1292,17 +1292,18 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
       awayFromTrack(hypotheses_[s][0], jumped_);
       for (int i = 0; i < jumps; ++i)
         if (jumped_[i] && sum_sim_[i] / cues < track_reference_ - config_.reacquire_margin)
+        {
           p.log_weights[i] = -std::numeric_limits<double>::infinity();
+          // Nor is it evidence: it cannot take the track, so what it saw must not keep a track that has lost the
+          // object (a track left behind by an object that moved away was kept "seen" by every recovery frame
+          // and ran off).
+          sum_sim_[i] = 0.0;
+        }
     }
     if (two_stage)
       p.temper(prior_log_, config_.min_ess * n);
     // Evidence that the object is seen: the best particle's mean similarity over cues and views; for
-    // several sets (left and right images) the object must be seen in all of them. A refused jump is no
-    // evidence: it cannot take the track, so what it saw must not keep a track that has lost the object (a
-    // track left behind by an object that moved away was kept "seen" by its every recovery frame and ran off).
-    for (int i = 0; i < n; ++i)
-      if (p.log_weights[i] == -std::numeric_limits<double>::infinity())
-        sum_sim_[i] = 0.0;
+    // several sets (left and right images) the object must be seen in all of them.
     Eigen::Index best_index = -1;
     const double best = cues > 0.0 ? sum_sim_.maxCoeff(&best_index) / cues : 0.0;
     evidence = std::min(evidence, best);
