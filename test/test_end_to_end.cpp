@@ -200,6 +200,33 @@ TEST(EndToEnd, UnclutteredPendulumCsrtBaseline)
   EXPECT_GT(num(s, "ms_per_frame"), 0.0);
 }
 
+// --target-frame K is the first frame tracked, with a loaded target too: a target saved from a clip's first frame
+// is looked for from frame K on (until session 28 a loaded target silently started at frame 0).
+TEST(EndToEnd, ALoadedTargetIsLookedForFromTheTargetFrame)
+{
+  const std::string b = bag("pendulum_uncluttered", 150);
+  const std::string target = std::string(TEST_OUT_DIR) + "/saved_target.yml";
+  const std::string csv = std::string(TEST_OUT_DIR) + "/from_frame_60.csv";
+  track(b, "--seed 1 --save-target " + target);
+  const auto s = track(b, "--seed 1 --target-model " + target + " --target-frame 60 --output " + csv);
+  EXPECT_EQ(num(s, "frames"), 90);
+  EXPECT_LE(num(s, "converged_at"), 10);
+  EXPECT_LE(num(s, "rms_cm"), 1.5);
+  FILE* f = std::fopen(csv.c_str(), "r");
+  ASSERT_NE(f, nullptr) << csv;
+  char line[4096];
+  ASSERT_NE(std::fgets(line, sizeof line, f), nullptr);  // header
+  ASSERT_NE(std::fgets(line, sizeof line, f), nullptr);
+  std::fclose(f);
+  EXPECT_EQ(std::atoi(line), 60) << "first row: " << line;
+  int status = 0;
+  const std::string out = run(std::string(TRACK_BAG_BIN) + " " + b + " --quiet --target-model " + target +
+                                  " --target-frame 500",
+                              status);
+  EXPECT_NE(status, 0);
+  EXPECT_NE(out.find("no usable frame at or after --target-frame 500"), std::string::npos) << out;
+}
+
 TEST(EndToEnd, ClearErrorsForBadInvocations)
 {
   int status = 0;

@@ -31,8 +31,10 @@ const char* kUsage =
     "  --state TYPE             state model: Position3D, Velocity3D or StereoConstraints (stereo_pf/ optional)\n"
     "  --particles N            particles (per set)            --seed S   RNG seed\n"
     "  --target-roi x,y,w,h     learn the target from this box of the left image of frame K\n"
-    "  --target-frame K         (default 0; without --target-roi the bag's ground_truth/target_roi of frame K)\n"
-    "  --target-model FILE      load a saved target instead     --save-target FILE   save the learned one\n"
+    "  --target-frame K         first frame tracked (default 0); without --target-roi the box is the bag's\n"
+    "                           ground_truth/target_roi of frame K\n"
+    "  --target-model FILE      load a saved target instead (looked for from frame K on)\n"
+    "  --save-target FILE       save the learned target\n"
     "  --output CSV             one row per frame: the estimate, its variances and images, ess, state, ms, the\n"
     "                           evidence and background similarity and what they said (support), the\n"
     "                           covariances sxy, sxz, syz, the truth; x..szz and sxy..syz only while tracking\n"
@@ -441,10 +443,12 @@ int main(int argc, char** argv)
     std::string error;
     while (source.next(bf))
     {
+      // Tracking starts at --target-frame: a box is learned there, and a loaded target is looked for from there
+      // (so that a target saved from one clip can be tried on a later part of another).
+      if (bf.index < opt.target_frame)
+        continue;
       if (!learned)
       {
-        if (bf.index < opt.target_frame)
-          continue;  // nothing to track before the target is known
         cv::Rect roi = opt.roi;
         if (!opt.has_roi)
         {
@@ -484,7 +488,9 @@ int main(int argc, char** argv)
       throw std::runtime_error("the bag has no usable frame at or after --target-frame " +
                                std::to_string(opt.target_frame));
     if (recorder.records().empty())
-      throw std::runtime_error("no frame could be tracked");
+      throw std::runtime_error(opt.target_frame > 0 ? "the bag has no usable frame at or after --target-frame " +
+                                                          std::to_string(opt.target_frame)
+                                                    : std::string("no frame could be tracked"));
     std::cout << stereo_pf::summarise(recorder.records()).line() << std::endl;
     return 0;
   }
