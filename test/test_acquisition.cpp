@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstdio>
 #include <functional>
 #include <iostream>
 #include <vector>
@@ -769,17 +771,20 @@ Coverage ellipsoidCoverage()
 TEST(Uncertainty, TheTruthLiesInsideThePublished95PercentEllipsoid)
 {
   // The acceptance, on a corpus small enough for a unit test: in at least 85 % of tracked frames. The
-  // refining cues' untempered likelihoods leave a cloud narrower than the error (the ellipsoid published before:
-  // 85-87 % here, far less on the stress suite); the published one adds the region the other cues allow, holds
-  // the truth clearly more often, and is still informative (its largest standard deviation a few per cent of the
-  // range at most).
+  // refining cues' likelihoods leave a cloud narrower than the error (the ellipsoid published before: 85-87 % here,
+  // far less on the stress suite; untempered, the refined cloud's own held the truth in 83 % of these frames, and
+  // with engine/refine_min_ess's floor in 92 %); the published one adds the region the other cues allow, holds the
+  // truth at least as often, and is still informative (its largest standard deviation a few per cent of the range
+  // at most). Until refine_min_ess this asked the published ellipsoid for 10 points more than the refined cloud's
+  // own: that margin was the refined cloud's over-confidence, which the floor took away; the refined cloud is now
+  // asked to reach 85 % itself (83 % untempered).
   const Coverage c = ellipsoidCoverage();
   std::cout << "[ figures  ] inside the published 95 % ellipsoid: " << 100.0 * c.published << " % of " << c.frames
             << " tracking frames (the refined cloud's own: " << 100.0 * c.refined
             << " %); median largest sigma / range " << 100.0 * c.median_sigma << " %\n";
   EXPECT_GE(c.frames, 4 * 30) << "the corpus is tracked";
   EXPECT_GE(c.published, 0.85);
-  EXPECT_GT(c.published, c.refined + 0.1);
+  EXPECT_GE(c.refined, 0.85);
   EXPECT_LT(c.median_sigma, 0.03);
 }
 
@@ -1111,6 +1116,65 @@ TEST(Tracking, ARefiningCueDoesNotHandTheTrackToALookAlike)
         << "frame " << k << ": the estimate left the object for the look-alike";
   }
   std::printf("[ figures  ] largest distance from the object %.1f cm (the look-alike is 24 cm away)\n", 100.0 * worst);
+}
+
+namespace
+{
+/// A refining cue as sharp as the stereo match and knowing nothing: each hypothesis's log-likelihood is a hash of
+/// its image position spread over 40 nats, so whichever particle the jitter happens to put on a high value would
+/// take all the weight.
+class SharpNoise : public TestCue
+{
+public:
+  void evaluate(stereo_pf::FeatureCache&, const stereo_pf::ImageHypotheses& hyp,
+                Eigen::Ref<Eigen::VectorXd> log_likelihood, Eigen::Ref<Eigen::VectorXd> similarity) override
+  {
+    for (int i = 0; i < hyp.size(); ++i)
+    {
+      const uint32_t h = static_cast<uint32_t>(std::lround(hyp.u[i] * 64.0f)) * 2654435761u ^
+                         static_cast<uint32_t>(std::lround(hyp.v[i] * 64.0f)) * 40503u;
+      similarity[i] = static_cast<double>((h >> 7) % 10007u) / 10007.0;
+      log_likelihood[i] = -40.0 * (1.0 - similarity[i]);
+    }
+  }
+
+protected:
+  bool refinesByDefault() const override { return true; }
+};
+}  // namespace
+
+TEST(Tracking, ARefiningCueCannotLeaveTheEstimateToAHandfulOfParticles)
+{
+  // engine/refine_min_ess: the refining stage is tempered to leave an ESS of at least 1 % of the particles, so the
+  // estimate stays a mean over what the other cues allowed, not the one or two particles a sharp refining cue
+  // happened to favour (on a drawn scene, one particle 7 cm off a small box took 0.96 of the weight and the track
+  // ran 22 % of range short). Without it this cue leaves a handful.
+  using namespace stereo_pf;
+  TwoBalls balls(20);
+  auto run = [&](double refine_min_ess) {
+    std::vector<double> ess;
+    EngineConfig config = balls.config;
+    config.refine_min_ess = refine_min_ess;
+    FilterEngine engine(plugin<Position3D>("state_model"), { plugin<ColourHSI>("colour"), plugin<SharpNoise>("noise") },
+                        config);
+    cv::Mat l, r;
+    std::string error;
+    EXPECT_TRUE(engine.learnTarget(balls.renderer.renderFrame(0, l, r), balls.renderer.targetRoi(0), error)) << error;
+    for (int k = 0; k < balls.frames; ++k)
+    {
+      const FrameResult res = engine.step(balls.renderer.renderFrame(k, l, r));
+      EXPECT_EQ(res.state, TrackState::Tracking) << "frame " << k;
+      ess.push_back(res.ess);
+    }
+    std::sort(ess.begin(), ess.end());
+    return ess;
+  };
+  const std::vector<double> tempered = run(0.01), untempered = run(0.0);
+  const double floor = 0.01 * balls.config.particles;
+  EXPECT_GE(tempered.front(), 0.99 * floor);  // every frame (to rounding; jumps keep their group shares after it)
+  EXPECT_LT(untempered[untempered.size() / 2], 0.6 * floor);
+  std::printf("[ figures  ] refined ESS: smallest %.1f, median %.1f (untempered %.1f, %.1f)\n", tempered.front(),
+              tempered[tempered.size() / 2], untempered.front(), untempered[untempered.size() / 2]);
 }
 
 namespace

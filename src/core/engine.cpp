@@ -196,6 +196,9 @@ const std::vector<EngineField>& engineFields()
     doubleField<&C::refine_jitter>("refine_jitter", 0.0, 10.0, true,
                                    "before the refining cues, each particle is jittered by N(0, refine_jitter^2 C), "
                                    "C the set's covariance"),
+    doubleField<&C::refine_min_ess>("refine_min_ess", 0.0, 1.0, true,
+                                    "the refining cues' likelihood is raised to the largest power in (0, 1] leaving "
+                                    "an ESS of at least refine_min_ess x N (0: untempered)"),
     doubleField<&C::refine_search_weight>("refine_search_weight", 0.0, 1.0, true,
                                           "while searching or lost, refining cues are applied with the others at "
                                           "their weight times this (0: skipped)"),
@@ -1147,6 +1150,12 @@ double FilterEngine::refineSecondStage(const StereoGeometry& geometry, int s, Re
   p.log_weights.setZero();
   observe(geometry, s, [&](const ObservationModel& m) { return refining(m) ? Use{ 1.0, false } : Use{}; });
   escaped = boundToViewingVolume(s) == 0 || escaped;
+  if (config_.refine_min_ess > 0.0)
+  {
+    // The set was resampled: a uniform prior, the refining cues' likelihood alone is tempered.
+    refine_prior_.setZero(n);
+    p.temper(refine_prior_, config_.refine_min_ess * n);
+  }
   if (jumps > 0 && !hypotheses_[s].empty())
     log_marginal += keepJumpShares(p, hypotheses_[s][0]);
   return log_marginal;
