@@ -1357,8 +1357,8 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
   if (two_stage && result.estimate.valid)
   {
     // The refining cues place the object within the region the other cues allow, more precisely than they can
-    // vouch for (their likelihoods are untempered: tempered, the precision they give is lost). The published
-    // uncertainty is that region's spread plus theirs.
+    // vouch for (their likelihoods are tempered only down to refine_min_ess: tempered to min_ess, the precision they
+    // give is lost). The published uncertainty is that region's spread plus theirs.
     const StateEstimate coarse = state_model_->estimate(geometry, coarse_sets_, Estimator::Mean, 0.0);
     if (coarse.valid)
       result.estimate.covariance += coarse.covariance;
