@@ -484,13 +484,12 @@ int main(int argc, char** argv)
     // Reasons first: when nothing was usable they are the explanation (e.g. an uncalibrated camera_info).
     for (const auto& kv : source.dropReasons())
       std::cerr << "track_bag: warning: dropped " << kv.second << " frame(s): " << kv.first << "\n";
+    const std::string none_after =
+        "the bag has no usable frame at or after --target-frame " + std::to_string(opt.target_frame);
     if (!learned)
-      throw std::runtime_error("the bag has no usable frame at or after --target-frame " +
-                               std::to_string(opt.target_frame));
-    if (recorder.records().empty())
-      throw std::runtime_error(opt.target_frame > 0 ? "the bag has no usable frame at or after --target-frame " +
-                                                          std::to_string(opt.target_frame)
-                                                    : std::string("no frame could be tracked"));
+      throw std::runtime_error(none_after);
+    if (recorder.records().empty())  // a loaded target, and no frame from --target-frame on
+      throw std::runtime_error(opt.target_frame > 0 ? none_after : std::string("no frame could be tracked"));
     std::cout << stereo_pf::summarise(recorder.records()).line() << std::endl;
     return 0;
   }
