@@ -1179,6 +1179,90 @@ TEST(Tracking, ARefiningCueCannotLeaveTheEstimateToAHandfulOfParticles)
 
 namespace
 {
+/// An evidence cue that knows where the object is to a pixel: a Gaussian of 1 px around the image of `object` in
+/// each view, far sharper than min_ess lets the first stage apply.
+class PinsTheObject : public TestCue
+{
+public:
+  Eigen::Vector3d object;
+  void evaluate(stereo_pf::FeatureCache& cache, const stereo_pf::ImageHypotheses& hyp,
+                Eigen::Ref<Eigen::VectorXd> log_likelihood, Eigen::Ref<Eigen::VectorXd> similarity) override
+  {
+    const stereo_pf::Pixel o = cache.geometry().project(object, hyp.view);
+    for (int i = 0; i < hyp.size(); ++i)
+    {
+      const double d2 = hyp.valid[i] ? std::pow(hyp.u[i] - o.u, 2) + std::pow(hyp.v[i] - o.v, 2) : 1e6;
+      log_likelihood[i] = -0.5 * d2;
+      similarity[i] = std::max(0.2, std::exp(-0.5 * d2 / (4.0 * 4.0)));  // "seen" within a few pixels
+    }
+  }
+};
+
+/// A refining cue whose optimum lies off the object: it grows by 0.1 nat per pixel to the right in each view (as
+/// the stereo match leans towards the side of its disc where the background is plainer).
+class LeansRight : public TestCue
+{
+public:
+  void evaluate(stereo_pf::FeatureCache& cache, const stereo_pf::ImageHypotheses& hyp,
+                Eigen::Ref<Eigen::VectorXd> log_likelihood, Eigen::Ref<Eigen::VectorXd> similarity) override
+  {
+    const double centre = 0.5 * cache.geometry().width();
+    for (int i = 0; i < hyp.size(); ++i)
+    {
+      log_likelihood[i] = hyp.valid[i] ? 0.1 * (hyp.u[i] - centre) : -100.0;
+      similarity[i] = 0.5;
+    }
+  }
+
+protected:
+  bool refinesByDefault() const override { return true; }
+};
+}  // namespace
+
+TEST(Tracking, WhatTheFirstStagesTemperingHeldBackIsAppliedWithTheRefiningCues)
+{
+  // engine/refine_carry: the first stage applies the target cues' likelihood only to the power min_ess allows; the
+  // refining stage applies the rest (each particle its parent's). Against a refining cue leaning to the right, a
+  // target cue that pins the object to a pixel then keeps the estimate on the object; without the rest the lean
+  // takes the estimate across the tempered cloud, frame after frame, off the ball.
+  using namespace stereo_pf;
+  TwoBalls balls(20);
+  const StereoGeometry g = balls.renderer.geometry();
+  const Pixel object = g.project(TwoBalls::target, View::Left);
+  const double radius = g.apparentRadius(0.03, TwoBalls::target.z());
+  auto run = [&](double carry) {
+    EngineConfig config = balls.config;
+    config.refine_carry = carry;
+    config.tracking_respawn_fraction = 0.0;  // no recovery search: the two cues alone
+    config.local_fraction = 0.0;
+    auto pins = plugin<PinsTheObject>("pins");
+    pins->object = TwoBalls::target;
+    FilterEngine engine(plugin<Position3D>("state_model"), { pins, plugin<LeansRight>("leans") }, config);
+    cv::Mat l, r;
+    std::string error;
+    EXPECT_TRUE(engine.learnTarget(balls.renderer.renderFrame(0, l, r), balls.renderer.targetRoi(0), error)) << error;
+    double sum = 0.0;
+    int frames = 0;
+    for (int k = 0; k < balls.frames; ++k)
+    {
+      const FrameResult res = engine.step(balls.renderer.renderFrame(k, l, r));
+      if (res.state != TrackState::Tracking || !res.estimate.valid)
+        return HUGE_VAL;  // lost: the lean took it off the object altogether
+      sum += res.estimate.left.u - object.u;
+      ++frames;
+    }
+    return sum / frames;
+  };
+  const double carried = run(1.0), held_back = run(0.0);
+  EXPECT_LT(std::abs(carried), 0.5 * radius);
+  EXPECT_GT(held_back, 3.0 * std::abs(carried));
+  std::printf("[ figures  ] mean offset of the estimate to the right of the object: %.1f px (without the rest: %.1f px; "
+              "the ball's radius %.1f px)\n",
+              carried, held_back, radius);
+}
+
+namespace
+{
 /// An evidence cue under a script: near the object's image (within half its apparent radius) it scores 0.95,
 /// near a look-alike's 0.7, elsewhere 0.2; on `sunk` frames the object scores 0.5 (its appearance lost against a
 /// new background). Its target map shows both.
