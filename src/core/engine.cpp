@@ -199,9 +199,6 @@ const std::vector<EngineField>& engineFields()
     doubleField<&C::refine_min_ess>("refine_min_ess", 0.0, 1.0, true,
                                     "the refining cues' likelihood is raised to the largest power in (0, 1] leaving "
                                     "an ESS of at least refine_min_ess x N (0: untempered)"),
-    doubleField<&C::refine_carry>("refine_carry", 0.0, 1.0, true,
-                                  "share of the other cues' likelihood, held back by the first stage's tempering, that "
-                                  "the refining stage applies (each particle its parent's; 0: none)"),
     doubleField<&C::refine_search_weight>("refine_search_weight", 0.0, 1.0, true,
                                           "while searching or lost, refining cues are applied with the others at "
                                           "their weight times this (0: skipped)"),
@@ -1152,19 +1149,10 @@ double FilterEngine::refineSecondStage(const StereoGeometry& geometry, int s, Re
   jitter(p, cov, config_.refine_jitter, rng_);
   p.log_weights.setZero();
   observe(geometry, s, [&](const ObservationModel& m) { return refining(m) ? Use{ 1.0, false } : Use{}; });
-  // The rest of the other cues' likelihood, which the first stage's tempering held back (each particle its parent's).
-  const double rest = config_.refine_carry * (1.0 - first_power_);
-  if (rest > 0.0 && first_log_likelihood_.size() == n)
-    for (int i = 0; i < n; ++i)
-    {
-      const double l = first_log_likelihood_[resample_indices_[i]];
-      if (std::isfinite(l))
-        p.log_weights[i] += rest * l;
-    }
   escaped = boundToViewingVolume(s) == 0 || escaped;
   if (config_.refine_min_ess > 0.0)
   {
-    // The set was resampled: a uniform prior, the refining stage's likelihood alone is tempered.
+    // The set was resampled: a uniform prior, the refining cues' likelihood alone is tempered.
     refine_prior_.setZero(n);
     p.temper(refine_prior_, config_.refine_min_ess * n);
   }
@@ -1322,10 +1310,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
         }
     }
     if (two_stage)
-    {
-      first_log_likelihood_ = p.log_weights - prior_log_;
-      first_power_ = p.temper(prior_log_, config_.min_ess * n);
-    }
+      p.temper(prior_log_, config_.min_ess * n);
     // Evidence that the object is seen: the best particle's mean similarity over cues and views; for
     // several sets (left and right images) the object must be seen in all of them.
     Eigen::Index best_index = -1;

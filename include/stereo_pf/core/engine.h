@@ -157,13 +157,6 @@ struct EngineConfig
   /// (min_ess's rule, with the resampled set's uniform prior); a frame whose refined ESS is above it is not
   /// touched. 0: untempered, as before (tempered to min_ess's 0.1 the precision they give was lost).
   double refine_min_ess = 0.01;
-  /// Progressive correction of the other cues as well: the first stage applied their likelihood raised to the power
-  /// beta that min_ess allowed; the refining stage applies the rest, refine_carry * (1 - beta) of it, each
-  /// particle taking its parent's (the jitter moves it a fraction of the cloud's spread), together with the refining
-  /// cues and under the same refine_min_ess floor. Without it what the tempering took off was lost, and a refining
-  /// cue whose optimum lies off the object (the stereo match leans towards the side of its disc where the background
-  /// is plainer) placed the estimate within the tempered cloud. 0: the first stage's power only, as before.
-  double refine_carry = 1.0;
   /// While searching or lost, refining cues are applied together with the others, their weight multiplied by
   /// this (0: skipped then, the default: an outline of the target's colour is also found on clutter of that
   /// colour, and the search did no better with it). They are never part of the evidence.
@@ -463,8 +456,6 @@ private:
 
   // scratch buffers kept across frames
   Eigen::VectorXd scratch_ll_, scratch_sim_, sum_sim_, prior_log_, refine_prior_;
-  Eigen::VectorXd first_log_likelihood_;  ///< the other cues' log-likelihood of the set being refined (untempered)
-  double first_power_ = 1.0;              ///< ... and the power the first stage applied it with
   ImageHypotheses background_hyp_, adapt_hyp_;
   Eigen::VectorXd background_ll_, background_sim_, background_sum_;
   std::vector<double> background_values_;
