@@ -289,6 +289,28 @@ class Smoke(unittest.TestCase):
         self.assertNotEqual(p.returncode, 0)
         self.assertIn("--set takes KEY=VALUE", p.stdout)
 
+    def test_other_tracker_seeds_are_run_and_said(self):
+        out = os.path.join(self.out, "seeds")
+        p = subprocess.run([os.path.join(ROOT, "scripts", "stress"), "--n", "1", "--frames", "12", "--no-build",
+                            "--devel", OPTIONS.devel, "--tracker-seeds", "4,7", "--out", out, "--docs", out],
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        self.assertEqual(p.returncode, 0, p.stdout)
+        with open(os.path.join(out, "stress.csv")) as f:
+            rows = list(csv.DictReader(f))
+        self.assertEqual(sorted((r["tracker"], r["seed"]) for r in rows), [("csrt", ""), ("ours", "4"), ("ours", "7")])
+        with open(os.path.join(out, "stress.md")) as f:
+            md = f.read()
+        self.assertIn("and seeds 4, 7;", md)
+        self.assertRegex(md, r"\| ours \(2 seeds\) \| 2 \| \d+ \(")
+
+    def test_malformed_tracker_seeds_are_refused(self):
+        for bad in ("4,x", "", "3,3", "-1"):
+            p = subprocess.run([os.path.join(ROOT, "scripts", "stress"), "--n", "1", "--no-build", "--tracker-seeds",
+                                bad, "--out", os.path.join(self.out, "bad"), "--docs", os.path.join(self.out, "bad")],
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+            self.assertNotEqual(p.returncode, 0, bad)
+            self.assertIn("--tracker-seeds takes distinct seeds", p.stdout, bad)
+
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()
