@@ -155,7 +155,7 @@ struct EngineConfig
   /// off took 0.96 of the weight, ESS 1.1, and the track went 14 and then 22 % of range short). So their
   /// likelihood is raised to the largest power in (0, 1] that leaves an ESS of at least refine_min_ess * N
   /// (min_ess's rule, with the resampled set's uniform prior); a frame whose refined ESS is above it is not
-  /// touched. 0: untempered, as before (tempered to min_ess's 0.1 the precision they give was lost).
+  /// touched. 0: untempered, as before (tempered down to min_ess, 0.1, the precision they give was lost).
   double refine_min_ess = 0.01;
   /// While searching or lost, refining cues are applied together with the others, their weight multiplied by
   /// this (0: skipped then, the default: an outline of the target's colour is also found on clutter of that
