@@ -271,6 +271,15 @@ class Smoke(unittest.TestCase):
             self.assertTrue(os.path.exists(os.path.join(self.out, "suite", "scenes", name)))
         self.assertEqual(os.listdir(os.path.join(self.out, "suite", "bags")), [])  # deleted once scored
 
+    def test_the_report_says_whether_the_checkout_had_local_changes(self):
+        # Its docs are outside the checkout here: the report must still see the checkout's own changes.
+        self.assertEqual(self.result.returncode, 0, self.result.stdout)
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", "."], cwd=ROOT,
+                               stdout=subprocess.PIPE, text=True, check=True).stdout.strip()
+        with open(os.path.join(self.docs, "stress.md")) as f:
+            md = f.read()
+        self.assertEqual(", with local changes" in md, bool(dirty), dirty)
+
     def test_bad_manifest_is_refused_with_the_field_named(self):
         bad = os.path.join(self.out, "bad.json")
         with open(bad, "w") as f:
