@@ -355,7 +355,7 @@ class Smoke(unittest.TestCase):
         self.assertIn("stress_000 rendered", run("--seed", "2")[0])
 
     def test_malformed_tracker_seeds_are_refused(self):
-        for bad in ("4,x", "", "3,3", "-1"):
+        for bad in ("4,x", "", "3,3", "-1", "0,2"):  # 0 would be taken for the CSRT run
             p = subprocess.run([os.path.join(ROOT, "scripts", "stress"), "--n", "1", "--no-build", "--tracker-seeds",
                                 bad, "--out", os.path.join(self.out, "bad"), "--docs", os.path.join(self.out, "bad")],
                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
