@@ -146,10 +146,7 @@ std::shared_ptr<ObservationModel> textureCue()
 }
 std::shared_ptr<ObservationModel> shapeCue()
 {
-  Parameters p;
-  p.set("weight", 0.2);
-  p.set("lines", 8);
-  return makeModel<ShapeCircle>("shape", p);
+  return makeModel<ShapeCircle>("shape");  // its defaults (weight 0.2, 8 lines), as config/multi_cue.yaml sets them
 }
 
 // n particles of dimension d (3 or 6): {x, y, z} ~ N(target, kSpread3D) per axis, a velocity (d = 6)
@@ -538,7 +535,8 @@ BENCHMARK(BM_WeightedCovariance)->Apply(particleCounts);
 enum class StepConfig
 {
   Default,            // the default tracker (config/tracker.yaml): Velocity3D + ColourHSI + TemplateMatch +
-                      // ColourContour + StereoMatch, recovery and local search, on pendulum_uncluttered
+                      // ColourContour + StereoMatch + ShapeCircle, recovery and local search, on
+                      // pendulum_uncluttered
   DefaultNoSearch,    // the same without the recovery and local search (their cost is the difference)
   DefaultNoRecovery,  // the same without the recovery search alone (its cost is the difference to Default)
   Position3DDefault,  // Position3D with the default cues and searches
@@ -570,7 +568,10 @@ void BM_Step(benchmark::State& state, StepConfig config)
   if (config != StepConfig::Position3DHistogram && config != StepConfig::SCHistogram)
     cues.push_back(contourCue());
   if (default_cues)
+  {
     cues.push_back(stereoCue());
+    cues.push_back(shapeCue());
+  }
   if (config == StepConfig::Position3DAllCues)
   {
     cues.push_back(textureCue());

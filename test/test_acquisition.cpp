@@ -1093,6 +1093,73 @@ protected:
 };
 }  // namespace
 
+namespace
+{
+/// A cue that scores every hypothesis alike (similarity 0.1, log-likelihood 0: it moves no particle), and says
+/// whether it identifies the target (learns its look) as `Identifies`.
+template <bool Identifies>
+class Flat : public TestCue
+{
+public:
+  void evaluate(stereo_pf::FeatureCache&, const stereo_pf::ImageHypotheses& hyp,
+                Eigen::Ref<Eigen::VectorXd> log_likelihood, Eigen::Ref<Eigen::VectorXd> similarity) override
+  {
+    for (int i = 0; i < hyp.size(); ++i)
+    {
+      log_likelihood[i] = 0.0;
+      similarity[i] = kSimilarity;
+    }
+  }
+  bool identifiesTarget() const override { return Identifies; }
+  static constexpr double kSimilarity = 0.1;
+};
+}  // namespace
+
+TEST(Tracking, ACueThatLearnsNoLookOfTheTargetIsNoEvidenceThatItIsSeen)
+{
+  // The evidence that the target is seen (FrameResult::evidence, what found_ and lost_similarity judge) is the mean
+  // similarity of the cues that compare each view with the target. A cue that learns nothing of its look (the
+  // shape cue: any round outline of its size) weighs the particles but is not part of that mean: beside the
+  // colour histogram, a flat cue scoring 0.1 everywhere leaves every frame's evidence as the histogram alone gives
+  // it; the same flat cue claiming to identify the target halves the histogram's distance to 0.1. Alone, it is
+  // all there is, and counts.
+  using namespace stereo_pf;
+  TwoBalls balls(6);
+  auto run = [&](std::vector<std::shared_ptr<ObservationModel>> cues, const EngineConfig& config) {
+    FilterEngine engine(plugin<Position3D>("state_model"), std::move(cues), config);
+    cv::Mat l, r;
+    std::string error;
+    EXPECT_TRUE(engine.learnTarget(balls.renderer.renderFrame(0, l, r), balls.renderer.targetRoi(0), error)) << error;
+    std::vector<FrameResult> results;
+    for (int k = 0; k < balls.frames; ++k)
+      results.push_back(engine.step(balls.renderer.renderFrame(k, l, r)));
+    return results;
+  };
+  const std::vector<FrameResult> alone = run({ plugin<ColourHSI>("colour") }, balls.config);
+  const std::vector<FrameResult> beside =
+      run({ plugin<ColourHSI>("colour"), plugin<Flat<false>>("outline") }, balls.config);
+  const std::vector<FrameResult> claiming =
+      run({ plugin<ColourHSI>("colour"), plugin<Flat<true>>("outline") }, balls.config);
+  ASSERT_EQ(alone.size(), beside.size());
+  for (size_t k = 0; k < alone.size(); ++k)
+  {
+    EXPECT_EQ(alone[k].state, TrackState::Tracking) << "frame " << k;
+    EXPECT_DOUBLE_EQ(beside[k].evidence, alone[k].evidence) << "frame " << k;
+    EXPECT_EQ(beside[k].state, alone[k].state) << "frame " << k;
+  }
+  EXPECT_GT(alone[0].evidence, 0.6);
+  // The first frame's particles are the same in all three (the flat cue moves none).
+  EXPECT_NEAR(claiming[0].evidence, 0.5 * (alone[0].evidence + Flat<true>::kSimilarity), 1e-12);
+
+  EngineConfig search = balls.config;
+  search.acquire = false;  // nothing to match the box with
+  cv::Mat l, r;
+  FilterEngine engine(plugin<Position3D>("state_model"), { plugin<Flat<false>>("outline") }, search);
+  std::string error;
+  ASSERT_TRUE(engine.learnTarget(balls.renderer.renderFrame(0, l, r), balls.renderer.targetRoi(0), error)) << error;
+  EXPECT_DOUBLE_EQ(engine.step(balls.renderer.renderFrame(0, l, r)).evidence, Flat<false>::kSimilarity);
+}
+
 TEST(Tracking, ARefiningCueDoesNotHandTheTrackToALookAlike)
 {
   // Two identical balls, the target left of the centre and its look-alike right of it. The recovery search (here

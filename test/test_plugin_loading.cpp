@@ -110,17 +110,18 @@ TEST(PluginLoading, ConfigurationBuildsTheListedModelsWithTheirParameters)
 }
 
 // Without a list: Velocity3D and the colour histogram, the grey-level template, the colour outline and the stereo
-// match (two refining cues), each under its own namespace; the `refine` switch is a common parameter of every cue.
-TEST(PluginLoading, DefaultCuesAreTheColourHistogramTheTemplateTheOutlineAndTheStereoMatch)
+// match (two refining cues) and the shape (no evidence that the target is seen, at a fifth of its thesis weight),
+// each under its own namespace; the `refine` switch is a common parameter of every cue.
+TEST(PluginLoading, DefaultCuesAreTheColourHistogramTheTemplateTheOutlineTheStereoMatchAndTheShape)
 {
   Parameters p;
   loadYamlString("colour_contour: {sigma: 0.08}\nstereo: {sigma: 0.2}\nstereo_cue: {refine: false}\n", p);
   Tracker tracker(p);
   EXPECT_EQ(tracker.pluginTypes(),
             (std::vector<std::string>{ "stereo_pf/Velocity3D", "stereo_pf/ColourHSI", "stereo_pf/TemplateMatch",
-                                       "stereo_pf/ColourContour", "stereo_pf/StereoMatch" }));
+                                       "stereo_pf/ColourContour", "stereo_pf/StereoMatch", "stereo_pf/ShapeCircle" }));
   const auto& models = tracker.engine().observationModels();
-  ASSERT_EQ(models.size(), 4u);
+  ASSERT_EQ(models.size(), 5u);
   EXPECT_EQ(models[0]->name(), "colour");
   EXPECT_FALSE(models[0]->refine());
   EXPECT_EQ(models[1]->name(), "template");
@@ -130,6 +131,15 @@ TEST(PluginLoading, DefaultCuesAreTheColourHistogramTheTemplateTheOutlineAndTheS
   EXPECT_EQ(models[3]->name(), "stereo");
   EXPECT_TRUE(models[3]->refine());
   EXPECT_TRUE(models[3]->comparesViews());
+  EXPECT_EQ(models[4]->name(), "shape");
+  EXPECT_FALSE(models[4]->refine());
+  EXPECT_FALSE(models[4]->identifiesTarget());
+  EXPECT_DOUBLE_EQ(models[4]->weight(), 0.2);
+  for (size_t k = 0; k < 4; ++k)
+  {
+    EXPECT_TRUE(models[k]->identifiesTarget()) << models[k]->name();
+    EXPECT_DOUBLE_EQ(models[k]->weight(), 1.0) << models[k]->name();
+  }
   for (const std::string& m : unknownParameters(p, kRosRuntimeParameters))
     EXPECT_EQ(m.find("'stereo/"), std::string::npos) << "the default stereo cue reads its namespace: " << m;
   auto stereo = tracker.createObservationModel("stereo_pf/StereoMatch", "stereo_cue", p.sub("stereo_cue"));

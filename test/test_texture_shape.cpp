@@ -671,11 +671,12 @@ TEST(ShapeCircle, ReconfigureAndSaveLoad)
   Parameters root;
   auto m = std::make_unique<ShapeCircle>();
   m->initialize("shape", root.sub("shape"));
-  EXPECT_EQ(m->lines(), 16);
+  EXPECT_EQ(m->lines(), 8);
+  EXPECT_DOUBLE_EQ(m->weight(), 0.2);
   root.set("shape/lines", 24);
   root.set("shape/q0", 2.0);
   EXPECT_THROW(m->reconfigure(), ParameterError);
-  EXPECT_EQ(m->lines(), 16);  // unchanged after the error
+  EXPECT_EQ(m->lines(), 8);  // unchanged after the error
   root.set("shape/q0", 0.2);
   m->reconfigure();
   EXPECT_EQ(m->lines(), 24);

@@ -61,6 +61,12 @@ public:
   /// while searching or lost, where what it rewards (e.g. any surface whose two views agree) would compete
   /// with the target's cues for the particles instead of sharpening them.
   virtual bool onlyWhileTracking() const { return false; }
+  /// Optional: false for a model whose similarity does not say whether it is the target that is seen, because it
+  /// learns nothing of the target's appearance (the shape cue fits any round outline of the target's size). It
+  /// weighs the particles like any other cue, but, like the cues comparing the views and the refining ones, it is
+  /// left out of the evidence that the target is seen (EngineConfig::found_similarity and the rest), unless no
+  /// enabled cue that identifies the target could count there.
+  virtual bool identifiesTarget() const { return true; }
   /// Evaluate hypothesis pairs: entry i of `left` (View::Left) and of `right` (View::Right) are the same
   /// particle. Same outputs and rules as evaluate(). Only called when comparesViews(); the default throws
   /// std::logic_error.
@@ -99,7 +105,8 @@ public:
   const std::string& name() const { return name_; }
   /// False when switched off by the `enabled` parameter.
   bool enabled() const { return enabled_; }
-  /// Exponent on this model's likelihood (multiplies its log-likelihood), parameter `weight`.
+  /// Exponent on this model's likelihood (multiplies its log-likelihood), parameter `weight` (default
+  /// defaultWeight()).
   double weight() const { return weight_; }
   /// True for a refining cue (parameter `refine`, default refinesByDefault()): one whose likelihood is much
   /// sharper than a particle cloud spread by the dynamics can sample (a sub-pixel outline, a disparity). While
@@ -118,6 +125,8 @@ protected:
   const Parameters& params() const { return params_; }
   /// Default of the `refine` parameter (false: an ordinary cue).
   virtual bool refinesByDefault() const { return false; }
+  /// Default of the `weight` parameter (1: the likelihood as the model states it).
+  virtual double defaultWeight() const { return 1.0; }
 
 private:
   void readCommon();

@@ -40,7 +40,7 @@ ShapeCircle::Tunables ShapeCircle::readTunables() const
 {
   const Parameters& p = params();
   Tunables t;
-  t.lines = p.getInt("lines", 16, 3, 256, "radial measurement lines across the circle");
+  t.lines = p.getInt("lines", 8, 3, 256, "radial measurement lines across the circle");
   t.line_half_length = p.getInt("line_half_length", 5, 1, 25, "px on each side of the circle along each line");
   t.sigma = p.getDouble("sigma", 1.5, 0.1, 50.0, "px; edge position noise along a measurement line");
   t.q0 = p.getDouble("q0", 0.1, 0.001, 0.999, "prior that no peak on a line is the contour (eq. 5.10)");

@@ -672,6 +672,20 @@ bool FilterEngine::anyNonRefiningCue() const
                      [](const std::shared_ptr<ObservationModel>& m) { return m->enabled() && !m->refine(); });
 }
 
+bool FilterEngine::isEvidence(const ObservationModel& m) const
+{
+  // A cue that learns nothing of the target's look (the shape cue) weighs the particles but does not say it is the
+  // target that is seen; unless no enabled cue that does is there to say it (a shape cue alone), as a refining cue
+  // without another cue is an ordinary one.
+  if (m.identifiesTarget())
+    return true;
+  const bool others = anyNonRefiningCue();
+  return std::none_of(observation_models_.begin(), observation_models_.end(),
+                      [others](const std::shared_ptr<ObservationModel>& c) {
+                        return c->enabled() && !c->comparesViews() && c->identifiesTarget() && !(others && c->refine());
+                      });
+}
+
 int FilterEngine::proposeLocally(const StereoGeometry& geometry, int count, double dt)
 {
   if (count <= 0 || track_known_ < 1 || !(track_disparity_[0] > 0.0))
@@ -694,8 +708,8 @@ int FilterEngine::proposeLocally(const StereoGeometry& geometry, int count, doub
     track.reach = std::min(config_.start_speed * dt * track.disparity / geometry.baseline(),
                            static_cast<double>(std::max(geometry.width(), geometry.height())));
   }
-  // The evidence cues while tracking (not the refining ones, which need a region to refine, nor those comparing
-  // the two views): the sum of their log-likelihoods, their mean similarity.
+  // The cues while tracking (not the refining ones, which need a region to refine, nor those comparing the two
+  // views): the sum of their log-likelihoods, and the mean similarity of those that are evidence.
   const bool others = anyNonRefiningCue();
   auto score = [&](const ImageHypotheses& hyp, Eigen::VectorXd& ll, Eigen::VectorXd& sim) {
     double cues = 0.0;
@@ -708,6 +722,8 @@ int FilterEngine::proposeLocally(const StereoGeometry& geometry, int count, doub
       scratch_sim_.resize(hyp.size());
       m.evaluate(cache_, hyp, scratch_ll_, scratch_sim_);
       ll += m.weight() * cue_trust_[k] * scratch_ll_;
+      if (!isEvidence(m))
+        continue;  // weighs, but is no evidence
       sim += cue_trust_[k] * scratch_sim_;
       cues += cue_trust_[k];
     }
@@ -1261,7 +1277,9 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
                                                  [&](const std::shared_ptr<ObservationModel>& m) {
                                                    return active(*m) && refining(*m);
                                                  });
-  auto is_evidence = [&](const ObservationModel& m) { return active(m) && !refining(m) && !m.comparesViews(); };
+  auto is_evidence = [&](const ObservationModel& m) {
+    return active(m) && !refining(m) && !m.comparesViews() && isEvidence(m);
+  };
   double evidence = std::numeric_limits<double>::infinity();
   double contrast = std::numeric_limits<double>::infinity();
   bool background_measured = false;
@@ -1286,7 +1304,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     const double cues = observe(geometry, s, [&](const ObservationModel& m) {
       if (!active(m) || (two_stage && refining(m)))
         return Use{};
-      return refining(m) ? Use{ config_.refine_search_weight, false } : Use{ 1.0, true };
+      return refining(m) ? Use{ config_.refine_search_weight, false } : Use{ 1.0, isEvidence(m) };
     });
     escaped = boundToViewingVolume(s) == 0 || escaped;
     // A recovery jump to another place than the track's counts, like a re-acquisition, only where the evidence

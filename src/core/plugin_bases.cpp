@@ -20,7 +20,7 @@ void ObservationModel::initialize(const std::string& name, const Parameters& par
 void ObservationModel::readCommon()
 {
   enabled_ = params_.getBool("enabled", true, "use this cue (false: it scores nothing)");
-  weight_ = params_.getDouble("weight", 1.0, 0.0, 100.0, "exponent on this cue's likelihood");
+  weight_ = params_.getDouble("weight", defaultWeight(), 0.0, 100.0, "exponent on this cue's likelihood");
   refine_ = params_.getBool("refine", refinesByDefault(),
                             "a refining cue: while tracking, applied after the others on the resampled, jittered set "
                             "(see engine/refine_jitter)");

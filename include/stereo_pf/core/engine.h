@@ -311,6 +311,10 @@ private:
   int proposeLocally(const StereoGeometry& geometry, int count, double dt);
   /// True when an enabled cue is not a refining one (refining cues then come second, after the others).
   bool anyNonRefiningCue() const;
+  /// True when `m`'s similarity counts towards the evidence that the target is seen (among the cues that compare each
+  /// view with the target and are not refining): when it identifies the target (ObservationModel::identifiesTarget),
+  /// or when no enabled cue that does could count.
+  bool isEvidence(const ObservationModel& m) const;
   /// After a step: keep the tracking estimate's image position, disparity and apparent size for proposeLocally().
   void rememberTrack();
   /// Draw every set around the acquired point (acquisition_): its left pixel jittered by a fraction of the apparent
