@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <functional>
 #include <limits>
+#include <numeric>
 #include <random>
 #include <string>
 #include <vector>
@@ -287,6 +288,46 @@ TEST(Binning, ChromaticHuesAreSeparated)
     EXPECT_GE(x, 0);
     EXPECT_LT(x, b.bins());
   }
+}
+
+TEST(Binning, SpreadAlongIntensityGivesColoursTheirNeighbouringSlicesAndLeavesGreys)
+{
+  const HsiBinning b;
+  const HsiBinner binner(b);
+  const int orange = binner.bin(kOrange[0], kOrange[1], kOrange[2]);
+  const int grey = binner.bin(kGrey[0], kGrey[1], kGrey[2]);
+  ASSERT_TRUE(b.isChromaticBin(orange));
+  ASSERT_FALSE(b.isChromaticBin(grey));
+  const int slice = orange % b.intensity_bins;
+  ASSERT_TRUE(slice > 0 && slice + 1 < b.intensity_bins) << "orange should have a darker and a lighter slice";
+
+  std::vector<double> q(static_cast<size_t>(b.bins()), 0.0);
+  q[static_cast<size_t>(orange)] = 2.0;  // not normalised: the result is
+  const std::vector<double> spread = b.spreadAlongIntensity(q, 0.5);
+  ASSERT_EQ(spread.size(), q.size());
+  EXPECT_NEAR(std::accumulate(spread.begin(), spread.end(), 0.0), 1.0, 1e-12);
+  EXPECT_NEAR(spread[static_cast<size_t>(orange)], 0.5, 1e-12);
+  EXPECT_NEAR(spread[static_cast<size_t>(orange - 1)], 0.25, 1e-12);  // one slice darker, same hue and saturation
+  EXPECT_NEAR(spread[static_cast<size_t>(orange + 1)], 0.25, 1e-12);  // one slice lighter
+  for (int k = 0; k < b.bins(); ++k)
+  {
+    if (std::abs(k - orange) > 1)
+    {
+      EXPECT_EQ(spread[static_cast<size_t>(k)], 0.0) << "bin " << k;
+    }
+  }
+
+  // Grey bins are told apart by intensity alone: they keep their mass.
+  std::fill(q.begin(), q.end(), 0.0);
+  q[static_cast<size_t>(grey)] = 1.0;
+  EXPECT_EQ(b.spreadAlongIntensity(q, 0.5), q);
+  // No tolerance: the input as it is; with a colour it is spread and normalised.
+  q[static_cast<size_t>(orange)] = 3.0;
+  EXPECT_EQ(b.spreadAlongIntensity(q, 0.0), q);
+  const std::vector<double> mixed = b.spreadAlongIntensity(q, 0.5);
+  EXPECT_NEAR(mixed[static_cast<size_t>(grey)], 0.25 / 1.75, 1e-12);
+  EXPECT_NEAR(mixed[static_cast<size_t>(orange)], 0.75 / 1.75, 1e-12);
+  EXPECT_THROW(b.spreadAlongIntensity(std::vector<double>(10, 1.0), 0.5), std::invalid_argument);
 }
 
 TEST(Binning, TooManyBinsRejected)
@@ -824,6 +865,39 @@ TEST(ColourHSI, BadParametersNameThemselves)
     EXPECT_NE(std::string(e.what()).find("hue_bins"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("256"), std::string::npos) << e.what();
   }
+}
+
+TEST(ColourHSI, AFaceShadedDarkerStillMatchesWithIntensityTolerance)
+{
+  // A lit orange disc (intensity 0.62, the middle of the third of 4 slices), and the same colour in shade (every
+  // channel times 0.6: HSI hue and saturation are the same, the intensity 0.37, one slice lower), as a box face
+  // turned away from the light shows it.
+  const cv::Vec3b lit(60, 160, 255), shaded(36, 96, 153);
+  cv::Mat img = makeBackground(cv::Size(260, 140), Background::TexturedGrey, 31);
+  drawDisc(img, 60, 70, 20, lit, 32);
+  drawDisc(img, 190, 70, 20, shaded, 33);
+  FeatureCache cache;
+  cache.reset(makeFrame(img, img));
+  std::string error;
+  Parameters root;
+  auto m = std::make_unique<ColourHSI>();
+  m->initialize("colour", root.sub("colour"));
+  ASSERT_TRUE(m->learnTarget(cache, View::Left, discBox(60, 70, 20), error)) << error;
+  EXPECT_GT(similarityAt(*m, cache, 60, 70, 20.0f), 0.95);
+  EXPECT_LT(similarityAt(*m, cache, 190, 70, 20.0f), 0.1) << "without tolerance the shaded face shares no bin";
+
+  root.set("colour/intensity_tolerance", 0.5);
+  m->reconfigure();
+  EXPECT_GT(similarityAt(*m, cache, 60, 70, 20.0f), 0.95) << "the learned colour itself still scores about 1";
+  const double shaded_similarity = similarityAt(*m, cache, 190, 70, 20.0f);
+  EXPECT_GT(shaded_similarity, 0.6);
+  EXPECT_LT(shaded_similarity, 0.8) << "about sqrt(0.5): a shaded face is not the face learned";
+  EXPECT_LT(similarityAt(*m, cache, 125, 25, 15.0f), 0.3) << "the grey background does not come closer";
+  // The back-projection (proposals) sees the shaded face too.
+  cv::Mat map;
+  ASSERT_TRUE(m->targetMap(cache, View::Left, map));
+  EXPECT_GT(map.at<uint8_t>(70, 190), 100);
+  EXPECT_EQ(map.at<uint8_t>(70, 60), 255);
 }
 
 TEST(ColourHSI, ReconfigureKeepsOldValuesOnError)

@@ -10,6 +10,8 @@
 #include <memory>
 #include <random>
 
+#include <opencv2/imgproc.hpp>
+
 #include "stereo_pf/core/feature_cache.h"
 #include "stereo_pf/core/parameters.h"
 #include "stereo_pf/sim/scene.h"
@@ -187,6 +189,35 @@ TEST_F(OrangeBall, ForegroundMapAndBackgroundHistogram)
   const long before = cache_.computeCount();
   model_->foregroundMap(cache_, View::Left, 50, 60);
   EXPECT_EQ(cache_.computeCount(), before);
+}
+
+TEST(ColourContour, AFaceOfTheTargetColourInShadeCountsAsTargetWithIntensityTolerance)
+{
+  // A lit disc of the target's colour (intensity 0.62) to learn from; in a later frame, beside it, the same colour
+  // in shade (every channel times 0.6: the same hue and saturation, one intensity slice lower), as a box face
+  // turned from the light shows it.
+  cv::Mat learning(kHeight, kWidth, CV_8UC3, cv::Scalar(212, 220, 222));
+  cv::circle(learning, cv::Point(80, 120), 20, cv::Scalar(60, 160, 255), cv::FILLED);
+  cv::Mat img = learning.clone();
+  cv::circle(img, cv::Point(230, 120), 20, cv::Scalar(36, 96, 153), cv::FILLED);
+  FeatureCache cache;
+  cache.reset(frameOf(learning, learning));
+  Parameters root;
+  auto m = std::make_unique<ColourContour>();
+  m->initialize("colour_contour", root.sub("colour_contour"));
+  std::string error;
+  ASSERT_TRUE(m->learnTarget(cache, View::Left, boxOf(80, 120, 20), error)) << error;
+  cache.reset(frameOf(img, img));
+  EXPECT_GE(m->foregroundMap(cache, View::Left, 0, kHeight).at<uint8_t>(120, 80), 250);
+  EXPECT_EQ(m->foregroundMap(cache, View::Left, 0, kHeight).at<uint8_t>(120, 230), 128) << "seen in neither";
+
+  root.set("colour_contour/intensity_tolerance", 0.5);
+  m->reconfigure();
+  cache.reset(frameOf(img, img));  // a new frame: the map is built with the new table
+  const cv::Mat& p = m->foregroundMap(cache, View::Left, 0, kHeight);
+  EXPECT_GE(p.at<uint8_t>(120, 80), 250);
+  EXPECT_GE(p.at<uint8_t>(120, 230), 250) << "the shaded face is the target's colour";
+  EXPECT_LT(p.at<uint8_t>(10, 10), 5) << "the wall is still background";
 }
 
 TEST(ColourContour, WhiteBallOnGreyWorksWithoutHue)

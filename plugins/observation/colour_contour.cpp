@@ -66,6 +66,10 @@ ColourContour::Tunables ColourContour::readTunables() const
     throw ParameterError("parameter '" + scoped(p, "radius") + "' = " + std::to_string(t.radius) +
                          " is below '" + scoped(p, "min_radius") + "' = " + std::to_string(t.min_radius) +
                          " (allowed: 0 = learned, or >= min_radius)");
+  t.intensity_tolerance = p.getDouble("intensity_tolerance", t.intensity_tolerance, 0.0, 1.0,
+                                      "share of each colour's mass also given to one intensity slice darker and "
+                                      "lighter in both histograms: a face of the target's colour in shade still "
+                                      "counts as the target (0: off)");
   return t;
 }
 
@@ -124,6 +128,7 @@ void ColourContour::applyTunables(const Tunables& t)
   background_mismatch_ = static_cast<float>(sum / along_.size());
   // An unobservable hypothesis scores like background: no evidence either way.
   invalid_log_likelihood_ = -background_mismatch_ / (2.0 * t.sigma * t.sigma);
+  buildTable();  // intensity_tolerance may have changed
 }
 
 void ColourContour::buildOffsets(size_t step)
@@ -147,12 +152,23 @@ void ColourContour::setTarget(TargetHistogram target, TargetHistogram background
   target_ = std::move(target);
   // Nothing outside the region (it covers the image), or an old file: a uniform background.
   background_ = background.valid() ? std::move(background) : TargetHistogram(std::vector<double>(n, 1.0));
+  buildTable();
+}
+
+void ColourContour::buildTable()
+{
   lut_.assign(256, 128);
-  const std::vector<double>& q = target_.probabilities();
-  const std::vector<double>& b = background_.probabilities();
-  for (int i = 0; i < n && target_.valid(); ++i)
-    lut_[i] = cv::saturate_cast<uint8_t>(255.0 * (q[i] + kPrior) / (q[i] + b[i] + 2.0 * kPrior));
   ++target_version_;
+  if (!target_.valid())
+    return;
+  const double tolerance = tunables_.intensity_tolerance;
+  const std::vector<double> q = tolerance > 0.0 ? binning_.spreadAlongIntensity(target_.probabilities(), tolerance) :
+                                                  target_.probabilities();
+  const std::vector<double> b = tolerance > 0.0 ?
+                                    binning_.spreadAlongIntensity(background_.probabilities(), tolerance) :
+                                    background_.probabilities();
+  for (int i = 0; i < binning_.bins(); ++i)
+    lut_[i] = cv::saturate_cast<uint8_t>(255.0 * (q[i] + kPrior) / (q[i] + b[i] + 2.0 * kPrior));
 }
 
 bool ColourContour::learnTarget(FeatureCache& cache, View view, const cv::Rect& roi, std::string& error)

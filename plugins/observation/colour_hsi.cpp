@@ -63,12 +63,16 @@ ColourHSI::Tunables ColourHSI::readTunables() const
   t.anchor = p.getDouble("anchor", t.anchor, 0.0, 1.0,
                          "share of the histogram in use that is the one learned from the box (the rest: the adapted "
                          "one)");
+  t.intensity_tolerance = p.getDouble("intensity_tolerance", t.intensity_tolerance, 0.0, 1.0,
+                                      "share of each colour's mass the comparison also finds one intensity slice darker "
+                                      "and lighter: a face shaded otherwise than when learned still matches (0: off)");
   return t;
 }
 
 void ColourHSI::applyTunables(const Tunables& t)
 {
   tunables_ = t;
+  refreshScoring();
   // An unobservable hypothesis scores like plain background (rho = 0, nothing of the target around it):
   // no evidence either way, rather than being punished below the background.
   invalid_log_likelihood_ = bhattacharyyaLogLikelihood(0.0, t.sigma);
@@ -140,7 +144,33 @@ void ColourHSI::setLearned(TargetHistogram learned)
   learned_ = std::move(learned);
   target_ = learned_;
   running_ = learned_.probabilities();
+  refreshScoring();
+}
+
+void ColourHSI::refreshScoring()
+{
   ++target_version_;
+  scoring_scale_ = 1.0;
+  if (!target_.valid() || !(tunables_.intensity_tolerance > 0.0))
+  {
+    scoring_ = target_;
+    return;
+  }
+  const std::vector<double>& q = target_.probabilities();
+  std::vector<double> spread = binning_.spreadAlongIntensity(q, tunables_.intensity_tolerance);
+  if (spread == q)
+  {
+    scoring_ = target_;  // no colour to spread (a grey target; a grey image's always): compared as it is
+    return;
+  }
+  scoring_ = TargetHistogram(spread);
+  const double self = bhattacharyya(q, scoring_.probabilities());
+  scoring_scale_ = self > 0.0 ? 1.0 / self : 1.0;
+}
+
+double ColourHSI::score(SparseHistogram& histogram) const
+{
+  return std::min(1.0, histogram.scoreAndClear(scoring_) * scoring_scale_);
 }
 
 void ColourHSI::forgetAdaptation()
@@ -164,7 +194,7 @@ void ColourHSI::adapt(FeatureCache& cache, const ImageHypotheses& estimate)
   if (!seen.valid())
     return;
   const std::vector<double>& obs = seen.probabilities();
-  if (bhattacharyya(target_.probabilities(), obs) < tunables_.adapt_min)
+  if (std::min(1.0, bhattacharyya(scoring_.probabilities(), obs) * scoring_scale_) < tunables_.adapt_min)
     return;  // not confidently the object: the target stays
   std::vector<double> use(running_.size());
   for (size_t b = 0; b < running_.size(); ++b)
@@ -173,7 +203,7 @@ void ColourHSI::adapt(FeatureCache& cache, const ImageHypotheses& estimate)
     use[b] = tunables_.anchor * learned_.probabilities()[b] + (1.0 - tunables_.anchor) * running_[b];
   }
   target_ = TargetHistogram(use);
-  ++target_version_;
+  refreshScoring();
 }
 
 void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
@@ -257,7 +287,7 @@ void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen:
     else
       candidate_.addGrid(bins->data, bins->step[0], window_.rows(), window_.numRows(), window_.cols(),
                          window_.numCols());
-    const double rho = candidate_.scoreAndClear(target_);
+    const double rho = score(candidate_);
     double penalty = 0.0;
     if (ring_radius > 0.0f)
     {
@@ -273,7 +303,7 @@ void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen:
           values[m++] = binAt(x, y);
       }
       ring_.addValues(values, m);
-      penalty = surround_weight * ring_.scoreAndClear(target_);
+      penalty = surround_weight * score(ring_);
     }
     log_likelihood[i] = -((1.0 - rho) + penalty) * inv_two_sigma2;
     similarity[i] = rho;
@@ -288,7 +318,7 @@ bool ColourHSI::targetMap(FeatureCache& cache, View view, cv::Mat& map)
   const std::string key = cache_key_ + "/backprojection/" + std::to_string(reinterpret_cast<uintptr_t>(this));
   map = cache.get(view, key, [this, &bins](const cv::Mat&, cv::Mat& out) {
     // A 256-entry table from bin to scaled target probability, applied with OpenCV's LUT.
-    const std::vector<double>& q = target_.probabilities();
+    const std::vector<double>& q = scoring_.probabilities();
     const double q_max = *std::max_element(q.begin(), q.end());
     cv::Mat lut(1, 256, CV_8U, cv::Scalar(0));
     for (size_t b = 0; b < q.size(); ++b)

@@ -65,6 +65,43 @@ int HsiBinning::bin(const Hsi& hsi) const
   return (hb * saturation_bins + sb) * intensity_bins + ib;
 }
 
+bool HsiBinning::isChromaticBin(int b) const
+{
+  const int sb = (b / intensity_bins) % saturation_bins;
+  const int hb = b / (intensity_bins * saturation_bins);
+  return sb > 0 || (hb > 0 && grey_levels <= intensity_bins);
+}
+
+std::vector<double> HsiBinning::spreadAlongIntensity(const std::vector<double>& q, double tolerance) const
+{
+  if (static_cast<int>(q.size()) != bins())
+    throw std::invalid_argument("HsiBinning::spreadAlongIntensity: " + std::to_string(q.size()) +
+                                " values for " + std::to_string(bins()) + " bins");
+  std::vector<double> out(q);
+  bool spread = false;
+  if (tolerance > 0.0)
+    for (int b = 0; b < bins(); ++b)
+    {
+      if (!isChromaticBin(b) || !(q[static_cast<size_t>(b)] > 0.0))
+        continue;
+      spread = true;
+      const int ib = b % intensity_bins;
+      if (ib > 0)
+        out[static_cast<size_t>(b - 1)] += tolerance * q[static_cast<size_t>(b)];
+      if (ib + 1 < intensity_bins)
+        out[static_cast<size_t>(b + 1)] += tolerance * q[static_cast<size_t>(b)];
+    }
+  if (!spread)
+    return out;  // as given, to the last bit
+  double sum = 0.0;
+  for (double v : out)
+    sum += v;
+  if (sum > 0.0)
+    for (double& v : out)
+      v /= sum;
+  return out;
+}
+
 void HsiBinning::validate() const
 {
   if (hue_bins < 1 || saturation_bins < 1 || intensity_bins < 1)

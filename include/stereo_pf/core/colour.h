@@ -72,6 +72,16 @@ struct HsiBinning
   /// `params`; throws ParameterError naming the parameter, or all three bin counts when their product exceeds
   /// kMaxBins.
   static HsiBinning fromParameters(const Parameters& params);
+  /// True when bin `b` holds colours, whose intensity a change of shading moves (a face turning away from the
+  /// light darkens, its hue and saturation stay): every bin but the grey ones (saturation bin 0, of hue bin 0
+  /// only unless grey_levels > intensity_bins).
+  bool isChromaticBin(int b) const;
+  /// `q` (one value per bin) with each chromatic bin's mass also given, times `tolerance`, to the bins one
+  /// intensity slice darker and lighter of the same hue and saturation (grey bins, which intensity alone tells
+  /// apart, keep theirs), normalised to sum 1. A comparison with it forgives a change of shading by one
+  /// intensity slice. `q` as given when nothing is spread (tolerance 0, or no colour bin holds mass). Throws
+  /// std::invalid_argument when `q` has not bins() entries.
+  std::vector<double> spreadAlongIntensity(const std::vector<double>& q, double tolerance) const;
   /// Write the six settings into the open map of `fs` (target files).
   void write(cv::FileStorage& fs) const;
   /// Read them back from a map written by write(); false with `error` naming the missing key.

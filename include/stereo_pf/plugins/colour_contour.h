@@ -50,7 +50,9 @@ namespace stereo_pf
 /// Parameters (in the plugin's namespace): hue_bins, saturation_bins, intensity_bins, achromatic_saturation,
 /// achromatic_intensity (as ColourHSI; structural, read at initialisation only), sigma (0.05, 0.001..10),
 /// lines (16, 4..256), line_half_length (2 px, 1..10), softness (0.7 px, 0.1..10), target_margin
-/// (0.15, 0..0.45), radius (0 = learned; px, 0..2000), min_radius (2 px, 0.5..1000), perspective (true);
+/// (0.15, 0..0.45), radius (0 = learned; px, 0..2000), min_radius (2 px, 0.5..1000), perspective (true),
+/// intensity_tolerance (0: off, 0..1: P from both histograms spread along intensity, as ColourHSI's: a face of the
+/// target's colour in shade is still the target's, not a colour seen in neither histogram);
 /// reconfigure() re-reads all but the binning.
 class ColourContour : public ObservationModel
 {
@@ -106,6 +108,7 @@ private:
     double radius = 0.0;
     double min_radius = 2.0;
     bool perspective = true;
+    double intensity_tolerance = 0.0;
   };
   /// One hypothesis's outline: centre, radial unit vector and semi-axes (a circle: a = b, e = (1, 0)).
   struct Outline
@@ -116,6 +119,8 @@ private:
   void applyTunables(const Tunables& t);
   /// Set the histograms (a target change) and rebuild the table from bin to P.
   void setTarget(TargetHistogram target, TargetHistogram background);
+  /// The table from bin to P, from the histograms and intensity_tolerance.
+  void buildTable();
   /// The outline of a hypothesis; false when it has none (invalid, non-finite, no usable radius).
   bool outline(const ImageHypotheses& hyp, int i, float focal, float cx, float cy, Outline& o) const;
   /// m for one outline on rows of the P map that cover it (NaN with fewer than half of the samples inside).

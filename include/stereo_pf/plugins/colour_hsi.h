@@ -54,8 +54,15 @@ namespace stereo_pf
 /// window_scale (0.7, 0.1..3), samples (11, 3..31), min_radius (2 px, 0.5..100),
 /// target_margin (0.15, 0..0.45), surround_scale (1.25; 0 = off, else 1..4), surround_margin (3 px, 0..100),
 /// surround_samples (32, 4..256), surround_weight (1.0, 0..10), adapt_rate (0: off, 0..1), adapt_min (0.6, 0..1),
-/// anchor (0.3, 0..1). The binning is structural (a learned target is tied to it) and is read at initialisation
-/// only; reconfigure() re-reads the others.
+/// anchor (0.3, 0..1), intensity_tolerance (0: off, 0..1). The binning is structural (a learned target is tied to
+/// it) and is read at initialisation only; reconfigure() re-reads the others.
+///
+/// Shading (`intensity_tolerance` t > 0): a face turning away from the light keeps its hue and saturation and
+/// darkens, and with 4 intensity slices a darker face shares no bin with the face learned. Candidates are then
+/// compared with the target spread along intensity (HsiBinning::spreadAlongIntensity: each colour bin's mass also
+/// in its darker and lighter neighbours, times t), rho(p, q') / rho(q, q'), at most 1: the target itself still
+/// scores 1, a colour one slice darker or lighter about sqrt(t) instead of 0. Grey bins are not spread (a grey
+/// object is told apart by intensity alone).
 ///
 /// Adaptation (adapt(), on the frames the engine calls the object seen): when the histogram of the window at the
 /// estimate scores at least adapt_min against the target in use, a running histogram moves towards it by
@@ -120,9 +127,14 @@ private:
     double adapt_rate = 0.0;
     double adapt_min = 0.6;
     double anchor = 0.3;
+    double intensity_tolerance = 0.0;
   };
   /// A new target learned or loaded: adaptation starts afresh from it.
   void setLearned(TargetHistogram learned);
+  /// The target as candidates are compared with it (scoring_, scoring_scale_), from target_ and the tunables.
+  void refreshScoring();
+  /// rho of a candidate or ring histogram (cleared) against the target, intensity_tolerance applied.
+  double score(SparseHistogram& histogram) const;
   Tunables readTunables() const;
   void applyTunables(const Tunables& t);
 
@@ -133,6 +145,10 @@ private:
   TargetHistogram target_;     // in use: anchor parts learned_, the rest running_
   TargetHistogram learned_;    // from the box (or the target file)
   std::vector<double> running_;  // the adapted histogram
+  // target_ spread along intensity (intensity_tolerance), and 1 / its rho against target_: rho(p, scoring_) times
+  // this is 1 for a candidate equal to the target (scoring_ is target_ and the factor 1 at tolerance 0)
+  TargetHistogram scoring_;
+  double scoring_scale_ = 1.0;
   double invalid_log_likelihood_ = 0.0;  // log-likelihood of rho = 0
   // scratch, sized in applyTunables: no allocation per hypothesis
   WindowGrid window_;         // the sample grid, placed per hypothesis
