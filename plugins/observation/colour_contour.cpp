@@ -161,12 +161,10 @@ void ColourContour::buildTable()
   ++target_version_;
   if (!target_.valid())
     return;
-  const double tolerance = tunables_.intensity_tolerance;
-  const std::vector<double> q = tolerance > 0.0 ? binning_.spreadAlongIntensity(target_.probabilities(), tolerance) :
-                                                  target_.probabilities();
-  const std::vector<double> b = tolerance > 0.0 ?
-                                    binning_.spreadAlongIntensity(background_.probabilities(), tolerance) :
-                                    background_.probabilities();
+  // As learned when nothing is spread (tolerance 0, grey histograms), to the last bit.
+  const std::vector<double> q = binning_.spreadAlongIntensity(target_.probabilities(), tunables_.intensity_tolerance);
+  const std::vector<double> b =
+      binning_.spreadAlongIntensity(background_.probabilities(), tunables_.intensity_tolerance);
   for (int i = 0; i < binning_.bins(); ++i)
     lut_[i] = cv::saturate_cast<uint8_t>(255.0 * (q[i] + kPrior) / (q[i] + b[i] + 2.0 * kPrior));
 }

@@ -151,16 +151,11 @@ void ColourHSI::refreshScoring()
 {
   ++target_version_;
   scoring_scale_ = 1.0;
-  if (!target_.valid() || !(tunables_.intensity_tolerance > 0.0))
-  {
-    scoring_ = target_;
-    return;
-  }
   const std::vector<double>& q = target_.probabilities();
-  std::vector<double> spread = binning_.spreadAlongIntensity(q, tunables_.intensity_tolerance);
+  std::vector<double> spread = target_.valid() ? binning_.spreadAlongIntensity(q, tunables_.intensity_tolerance) : q;
   if (spread == q)
   {
-    scoring_ = target_;  // no colour to spread (a grey target; a grey image's always): compared as it is
+    scoring_ = target_;  // nothing spread (tolerance 0; a grey target, a grey image's always): compared as it is
     return;
   }
   scoring_ = TargetHistogram(spread);
