@@ -147,7 +147,9 @@ struct EngineConfig
   double proposal_min_depth = 0.3;    ///< nearest depth (m) a proposal may have: bounds the disparity searched
   /// Progressive correction for refining cues (ObservationModel::refine()): after the other cues, each set is
   /// resampled and every particle jittered by N(0, refine_jitter^2 C), C the set's weighted covariance, before
-  /// the refining cues weigh it. 0: no jitter (the copies of a particle then stay identical).
+  /// the refining cues weigh it; not on a frame where the other cues see nothing at all (below lost_similarity and
+  /// no better than the background: no region to refine). 0: no jitter (the copies of a particle then stay
+  /// identical).
   double refine_jitter = 1.0;
   /// The refining cues are as sharp as the disparity they measure, and a particle the jitter took onto another
   /// surface that happens to match across the views can take all the weight: the estimate is then that one
@@ -307,16 +309,18 @@ private:
   static constexpr double kDisparityReach = 1.5;
   /// While tracking: run the local search near the last estimates' image track and append `count` pairs around
   /// its match to the proposals (none when the evidence cues score its best match below lost_similarity);
-  /// returns how many. `dt`: this frame's interval, s (with no motion known, the search reaches start_speed dt).
-  int proposeLocally(const StereoGeometry& geometry, int count, double dt);
+  /// returns how many. `stamp`: this frame's (the track's image motion is carried over the time since its last place,
+  /// at most kMaxPredictedPeriods frame periods; with no motion known, the search reaches start_speed times that).
+  int proposeLocally(const StereoGeometry& geometry, int count, double stamp);
   /// True when an enabled cue is not a refining one (refining cues then come second, after the others).
   bool anyNonRefiningCue() const;
   /// True when `m`'s similarity counts towards the evidence that the target is seen (among the cues that compare each
   /// view with the target and are not refining): when it identifies the target (ObservationModel::identifiesTarget),
   /// or when no enabled cue that does could count.
   bool isEvidence(const ObservationModel& m) const;
-  /// After a step: keep the tracking estimate's image position, disparity and apparent size for proposeLocally().
-  void rememberTrack();
+  /// After a step: keep the tracking estimate's image position, disparity and apparent size for proposeLocally(),
+  /// when the evidence saw the object (`vouched`); a frame that saw nothing keeps the last place the evidence saw.
+  void rememberTrack(bool vouched, double stamp);
   /// Draw every set around the acquired point (acquisition_): its left pixel jittered by a fraction of the apparent
   /// radius, its disparity by half a pixel, through StateModel::seedFromStereo (rows it rejects keep their
   /// prior draw).
@@ -413,10 +417,11 @@ private:
   StateEstimate seen_estimate_;
   double seen_stamp_ = 0.0;
   double seen_speed_ = 0.0;  ///< m/s, the object's speed there
-  /// The last two tracking estimates' left pixels and disparities (newest first) and how many are known: the
-  /// local search's image motion.
+  /// The last two tracking estimates the evidence saw (vouched): their left pixels, disparities and stamps (newest
+  /// first) and how many are known: the local search's image motion.
   Pixel track_left_[2];
   double track_disparity_[2] = { 0.0, 0.0 };
+  double track_stamp_[2] = { 0.0, 0.0 };
   int track_known_ = 0;
   double track_radius_ = 0.0;  ///< the tracked hypotheses' median apparent radius in the left image, px
   LocalSearch local_search_;
