@@ -956,6 +956,21 @@ std::unique_ptr<FilterEngine> defaultEngineOn(Scene& scene, unsigned long seed)
   }
   return engine;
 }
+
+/// defaultEngineOn(scene, seed) after frames [0, frames) of the scene, `last` the last one's result; null (a failure)
+/// when it is not tracking by then.
+std::unique_ptr<FilterEngine> trackedThrough(Scene& scene, unsigned long seed, int frames, FrameResult& last)
+{
+  std::unique_ptr<FilterEngine> engine = defaultEngineOn(scene, seed);
+  for (int k = 0; engine && k < frames; ++k)
+    last = engine->step(scene.frame(k));
+  if (engine && last.state != TrackState::Tracking)
+  {
+    ADD_FAILURE() << "not tracking after " << frames << " frames";
+    return nullptr;
+  }
+  return engine;
+}
 }  // namespace
 
 TEST(EngineRecovery, ATrackIsNotPredictedAcrossAGapOfDroppedFrames)
@@ -972,14 +987,11 @@ TEST(EngineRecovery, ATrackIsNotPredictedAcrossAGapOfDroppedFrames)
   for (unsigned long seed = 1; seed <= 8; ++seed)
   {
     SCOPED_TRACE("seed " + std::to_string(seed));
-    std::unique_ptr<FilterEngine> learned = defaultEngineOn(scene, seed);
-    ASSERT_TRUE(learned);
-    FilterEngine& engine = *learned;
     const int gap_at = 20 + static_cast<int>(7 * seed) % 50;  // other places of the swing
     FrameResult r;
-    for (int k = 0; k < gap_at; ++k)
-      r = engine.step(scene.frame(k));
-    ASSERT_EQ(r.state, TrackState::Tracking);
+    std::unique_ptr<FilterEngine> learned = trackedThrough(scene, seed, gap_at, r);
+    ASSERT_TRUE(learned);
+    FilterEngine& engine = *learned;
     StereoFrame blank = blankFrame(scene, gap_at);
     blank.stamp = scene.renderer().stamp(gap_at - 1) + period;
     r = engine.step(blank);
@@ -1024,14 +1036,11 @@ TEST(EngineRecovery, FramesThatShowNothingLeaveTheTrackWhereItWas)
     for (unsigned long seed = 1; seed <= 8; ++seed)
     {
       SCOPED_TRACE("grey " + std::to_string(static_cast<int>(grey)) + ", seed " + std::to_string(seed));
-      std::unique_ptr<FilterEngine> learned = defaultEngineOn(scene, seed);
-      ASSERT_TRUE(learned);
-      FilterEngine& engine = *learned;
       const int gap_at = 20 + static_cast<int>(11 * seed) % 50;  // other places of the swing
       FrameResult r;
-      for (int k = 0; k < gap_at; ++k)
-        r = engine.step(scene.frame(k));
-      ASSERT_EQ(r.state, TrackState::Tracking);
+      std::unique_ptr<FilterEngine> learned = trackedThrough(scene, seed, gap_at, r);
+      ASSERT_TRUE(learned);
+      FilterEngine& engine = *learned;
       const Eigen::Vector3d seen = r.estimate.position;
       double stamp = scene.renderer().stamp(gap_at - 1);
       for (const int periods : { 5, 22 })
@@ -1073,13 +1082,10 @@ TEST(EngineRecovery, ATrackLeftBehindIsLostNotKeptByTheJumpsItRefuses)
   for (unsigned long seed = 1; seed <= 6; ++seed)
   {
     SCOPED_TRACE("seed " + std::to_string(seed));
-    std::unique_ptr<FilterEngine> learned = defaultEngineOn(scene, seed);
+    FrameResult r;
+    std::unique_ptr<FilterEngine> learned = trackedThrough(scene, seed, 81, r);
     ASSERT_TRUE(learned);
     FilterEngine& engine = *learned;
-    FrameResult r;
-    for (int k = 0; k <= 80; ++k)
-      r = engine.step(scene.frame(k));
-    ASSERT_EQ(r.state, TrackState::Tracking);
     ASSERT_GT((scene.renderer().targetPosition(10) - r.estimate.position).norm(), 0.3);
     int off = 0;  // frames published more than 10 cm from the ball
     for (int j = 0; j < 20; ++j)
