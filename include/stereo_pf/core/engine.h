@@ -147,9 +147,9 @@ struct EngineConfig
   double proposal_min_depth = 0.3;    ///< nearest depth (m) a proposal may have: bounds the disparity searched
   /// Progressive correction for refining cues (ObservationModel::refine()): after the other cues, each set is
   /// resampled and every particle jittered by N(0, refine_jitter^2 C), C the set's weighted covariance, before
-  /// the refining cues weigh it; not on a frame where the other cues see nothing at all (below lost_similarity and
-  /// no better than the background: no region to refine). 0: no jitter (the copies of a particle then stay
-  /// identical).
+  /// the refining cues weigh it; not on a frame where the other cues see nothing at all (below lost_similarity, and
+  /// nothing or no better than the background: no region to refine). 0: no jitter (the copies of a particle then
+  /// stay identical).
   double refine_jitter = 1.0;
   /// The refining cues are as sharp as the disparity they measure, and a particle the jitter took onto another
   /// surface that happens to match across the views can take all the weight: the estimate is then that one
