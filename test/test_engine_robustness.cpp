@@ -1026,7 +1026,8 @@ TEST(EngineRecovery, FramesThatShowNothingLeaveTheTrackWhereItWas)
   // On a blank frame the other cues see nothing at all (nothing better than the background), and the refining
   // outline cue has no region to refine: given one, it scored the blank image's uniform map and collapsed the set
   // onto a few hypotheses (ESS 10-363 of 1000); in the soak the estimate went 1.3 m deeper, was held metres off after
-  // the burst and only found again once lost. Then the local search looked for the ball where the drifted estimate was, not where it was last seen.
+  // the burst and only found again once lost. And the local search looked for the ball where the drifted estimate
+  // was, not where it was last seen.
   // Before: on grey frames the track was metres off for 1-4 frames at 3 of 8 seeds, and lost at one. Now, at every
   // seed and for black and grey frames: ESS 227-972 on the blank frames, the first two frames after them within
   // 11 cm, every later one within 5 cm.
