@@ -163,9 +163,14 @@ void ColourHSI::refreshScoring()
   scoring_scale_ = self > 0.0 ? 1.0 / self : 1.0;
 }
 
+double ColourHSI::relative(double rho) const
+{
+  return std::min(1.0, rho * scoring_scale_);
+}
+
 double ColourHSI::score(SparseHistogram& histogram) const
 {
-  return std::min(1.0, histogram.scoreAndClear(scoring_) * scoring_scale_);
+  return relative(histogram.scoreAndClear(scoring_));
 }
 
 void ColourHSI::forgetAdaptation()
@@ -189,7 +194,7 @@ void ColourHSI::adapt(FeatureCache& cache, const ImageHypotheses& estimate)
   if (!seen.valid())
     return;
   const std::vector<double>& obs = seen.probabilities();
-  if (std::min(1.0, bhattacharyya(scoring_.probabilities(), obs) * scoring_scale_) < tunables_.adapt_min)
+  if (relative(bhattacharyya(scoring_.probabilities(), obs)) < tunables_.adapt_min)
     return;  // not confidently the object: the target stays
   std::vector<double> use(running_.size());
   for (size_t b = 0; b < running_.size(); ++b)

@@ -133,7 +133,9 @@ private:
   void setLearned(TargetHistogram learned);
   /// The target as candidates are compared with it (scoring_, scoring_scale_), from target_ and the tunables.
   void refreshScoring();
-  /// rho of a candidate or ring histogram (cleared) against the target, intensity_tolerance applied.
+  /// rho against scoring_ made relative to the target's own (times scoring_scale_), at most 1.
+  double relative(double rho) const;
+  /// rho of a candidate or ring histogram (cleared) against the target, intensity_tolerance applied (relative()).
   double score(SparseHistogram& histogram) const;
   Tunables readTunables() const;
   void applyTunables(const Tunables& t);
