@@ -191,6 +191,10 @@ const std::vector<EngineField>& engineFields()
     doubleField<&C::start_speed>("start_speed", 0.0, 1e3, false,
                                  "m/s; while no image motion of the track is known, the local search reaches as far "
                                  "as this speed takes the object in a frame (0: two radii)"),
+    doubleField<&C::return_watch>("return_watch", 0.0, 1e3, true,
+                                  "s; after a lost track is found again beyond the object's own reach of where it was "
+                                  "lost, watch there this long and move the track back when the object is seen there "
+                                  "(0: off)"),
     doubleField<&C::proposal_min_depth>("proposal_min_depth", 1e-3, 1e6, false,
                                         "m; nearest depth a proposal may have"),
     doubleField<&C::refine_jitter>("refine_jitter", 0.0, 10.0, true,
@@ -305,7 +309,7 @@ void FilterEngine::applyPending()
     initialised_ = false;
     state_ = TrackState::Searching;
     seen_count_ = unseen_count_ = unsure_count_ = state_frames_ = 0;
-    seen_estimate_ = StateEstimate{};  // a restart searches afresh, not near the last track
+    seen_estimate_ = watch_anchor_ = StateEstimate{};  // a restart searches afresh, not near the last track
   }
   // Last, and with the flag cleared first: a plugin that rejects its new parameters throws out of step()
   // once, not on every later frame, and the restart above is not lost.
@@ -416,16 +420,24 @@ void FilterEngine::seedAroundAcquisition(const StereoGeometry& geometry)
 {
   // The box centre is known to a fraction of the object's apparent size, the disparity to about half a pixel
   // (matchBox's parabola is finer, but a box drawn by hand is not centred to the pixel).
-  std::normal_distribution<double> lateral(0.0, std::max(0.5, 0.15 * acquired_.radius_px));
-  std::normal_distribution<double> disparity(0.0, 0.5);
+  seedAround(geometry, acquisition_.left, acquisition_.disparity, std::max(0.5, 0.15 * acquired_.radius_px), nullptr,
+             0.0);
+}
+
+void FilterEngine::seedAround(const StereoGeometry& geometry, const Pixel& centre, double disparity, double lateral,
+                              const StateEstimate* from, double dt)
+{
+  std::normal_distribution<double> across(0.0, lateral);
+  std::normal_distribution<double> along(0.0, 0.5);
   for (int s = 0; s < static_cast<int>(sets_.size()); ++s)
   {
     ParticleSet& p = sets_[s];
     for (int i = 0; i < p.size(); ++i)
     {
-      const Pixel left{ acquisition_.left.u + lateral(rng_), acquisition_.left.v + lateral(rng_) };
-      const double d = std::max(0.5 * acquisition_.disparity, acquisition_.disparity + disparity(rng_));
-      state_model_->seedFromStereo(geometry, s, p, i, left, Pixel{ left.u - d, left.v });
+      const Pixel left{ centre.u + across(rng_), centre.v + across(rng_) };
+      const double d = std::max(0.5 * disparity, disparity + along(rng_));
+      if (state_model_->seedFromStereo(geometry, s, p, i, left, Pixel{ left.u - d, left.v }) && from)
+        state_model_->setArrival(*from, dt, s, p, i);
     }
     p.weights.setConstant(1.0 / p.size());
   }
@@ -552,7 +564,7 @@ bool FilterEngine::loadTarget(const std::string& path, std::string& error)
         !photometry.empty() && photometry["brightness"].isReal() ? static_cast<double>(photometry["brightness"]) : -1.0;
     target_brightness_ = std::isfinite(brightness) && brightness > 0.0 ? brightness : -1.0;
     track_reference_ = hold_reference_ = -1.0;
-    seen_estimate_ = StateEstimate{};
+    seen_estimate_ = watch_anchor_ = StateEstimate{};
     return true;
   }
   catch (const cv::Exception& e)
@@ -722,46 +734,12 @@ int FilterEngine::proposeLocally(const StereoGeometry& geometry, int count, doub
     track.reach = std::min(config_.start_speed * ahead * track.disparity / geometry.baseline(),
                            static_cast<double>(std::max(geometry.width(), geometry.height())));
   }
-  // The cues while tracking (not the refining ones, which need a region to refine, nor those comparing the two
-  // views): the sum of their log-likelihoods, and the mean similarity of those that are evidence.
-  const bool others = anyNonRefiningCue();
-  auto score = [&](const ImageHypotheses& hyp, Eigen::VectorXd& ll, Eigen::VectorXd& sim) {
-    double cues = 0.0;
-    for (size_t k = 0; k < observation_models_.size(); ++k)
-    {
-      ObservationModel& m = *observation_models_[k];
-      if (!m.enabled() || m.comparesViews() || (others && m.refine()) || !(cue_trust_[k] > 0.0))
-        continue;  // as in observe(): an untrusted cue has no say
-      scratch_ll_.resize(hyp.size());
-      scratch_sim_.resize(hyp.size());
-      m.evaluate(cache_, hyp, scratch_ll_, scratch_sim_);
-      ll += m.weight() * cue_trust_[k] * scratch_ll_;
-      if (!isEvidence(m))
-        continue;  // weighs, but is no evidence
-      sim += cue_trust_[k] * scratch_sim_;
-      cues += cue_trust_[k];
-    }
-    if (cues > 0.0)
-      sim /= cues;
-  };
-  // The right image's disparities also by how well the two views agree there (the cues comparing them): each
-  // view's own resemblance to the target picks a look-alike of the right view when the object stands against
-  // different backgrounds in the two (a ball near the camera of a wide-baseline rig; on the real pitches, seeds
-  // 31-60, runs within 2 % of range 102 -> 105 of 120, median RMS of Ball_Launch1 0.74 -> 0.60 %, catch_test1
-  // 0.58 -> 0.41 %; the drawn scenes, 5 x 30 at tracker seeds 1 and 2, 172 of 300 either way).
-  auto pair = [&](const ImageHypotheses& left, const ImageHypotheses& right, Eigen::VectorXd& ll) {
-    for (size_t k = 0; k < observation_models_.size(); ++k)
-    {
-      ObservationModel& m = *observation_models_[k];
-      if (!m.enabled() || !m.comparesViews() || !(cue_trust_[k] > 0.0))
-        continue;
-      scratch_ll_.resize(right.size());
-      scratch_sim_.resize(right.size());
-      m.evaluatePair(cache_, left, right, scratch_ll_, scratch_sim_);
-      ll += m.weight() * cue_trust_[k] * scratch_ll_;
-    }
-  };
-  const LocalMatch match = local_search_.search(track, geometry.width(), geometry.height(), score, pair);
+  const LocalMatch match = local_search_.search(
+      track, geometry.width(), geometry.height(),
+      [this](const ImageHypotheses& hyp, Eigen::VectorXd& ll, Eigen::VectorXd& sim) { scoreLocally(hyp, ll, sim); },
+      [this](const ImageHypotheses& left, const ImageHypotheses& right, Eigen::VectorXd& ll) {
+        scorePairsLocally(left, right, ll);
+      });
   // A match the evidence would call unseen proposes nothing (an object growing or turning beyond what its
   // template knows still scores above that while it is in view).
   if (!match.found || match.similarity < config_.lost_similarity)
@@ -778,6 +756,125 @@ int FilterEngine::proposeLocally(const StereoGeometry& geometry, int count, doub
   }
   local_proposals_ = count;
   return count;
+}
+
+void FilterEngine::scoreLocally(const ImageHypotheses& hyp, Eigen::VectorXd& ll, Eigen::VectorXd& sim)
+{
+  // The cues while tracking (not the refining ones, which need a region to refine, nor those comparing the two
+  // views): the sum of their log-likelihoods, and the mean similarity of those that are evidence.
+  const bool others = anyNonRefiningCue();
+  double cues = 0.0;
+  for (size_t k = 0; k < observation_models_.size(); ++k)
+  {
+    ObservationModel& m = *observation_models_[k];
+    if (!m.enabled() || m.comparesViews() || (others && m.refine()) || !(cue_trust_[k] > 0.0))
+      continue;  // as in observe(): an untrusted cue has no say
+    scratch_ll_.resize(hyp.size());
+    scratch_sim_.resize(hyp.size());
+    m.evaluate(cache_, hyp, scratch_ll_, scratch_sim_);
+    ll += m.weight() * cue_trust_[k] * scratch_ll_;
+    if (!isEvidence(m))
+      continue;  // weighs, but is no evidence
+    sim += cue_trust_[k] * scratch_sim_;
+    cues += cue_trust_[k];
+  }
+  if (cues > 0.0)
+    sim /= cues;
+}
+
+void FilterEngine::scorePairsLocally(const ImageHypotheses& left, const ImageHypotheses& right, Eigen::VectorXd& ll)
+{
+  // The right image's disparities also by how well the two views agree there (the cues comparing them): each
+  // view's own resemblance to the target picks a look-alike of the right view when the object stands against
+  // different backgrounds in the two (a ball near the camera of a wide-baseline rig; on the real pitches, seeds
+  // 31-60, runs within 2 % of range 102 -> 105 of 120, median RMS of Ball_Launch1 0.74 -> 0.60 %, catch_test1
+  // 0.58 -> 0.41 %; the drawn scenes, 5 x 30 at tracker seeds 1 and 2, 172 of 300 either way).
+  for (size_t k = 0; k < observation_models_.size(); ++k)
+  {
+    ObservationModel& m = *observation_models_[k];
+    if (!m.enabled() || !m.comparesViews() || !(cue_trust_[k] > 0.0))
+      continue;
+    scratch_ll_.resize(right.size());
+    scratch_sim_.resize(right.size());
+    m.evaluatePair(cache_, left, right, scratch_ll_, scratch_sim_);
+    ll += m.weight() * cue_trust_[k] * scratch_ll_;
+  }
+}
+
+double FilterEngine::ownReach(double stamp) const
+{
+  const double since = std::max(0.0, stamp - watch_anchor_stamp_);
+  return config_.reacquire_speed_factor * watch_anchor_speed_ * since + 2.0 * target_radius_;
+}
+
+void FilterEngine::startReturnWatch(const StateEstimate& estimate, double stamp)
+{
+  // A watch already running keeps its anchor: a look-alike's track lost and found again does not move where the
+  // object itself was lost.
+  if (!watch_anchor_.valid || !(stamp <= watch_until_))
+  {
+    watch_anchor_ = seen_estimate_;
+    watch_anchor_stamp_ = seen_stamp_;
+    watch_anchor_speed_ = seen_speed_;
+  }
+  watch_hits_ = 0;
+  // Found again where the object's own motion could have taken it (or no place or size to compare): it is the
+  // object, or no better guess exists.
+  if (!(config_.return_watch > 0.0) || !watch_anchor_.valid || !estimate.valid || !(target_radius_ > 0.0) ||
+      !(stamp > watch_anchor_stamp_) || (estimate.position - watch_anchor_.position).norm() <= ownReach(stamp))
+  {
+    watch_anchor_ = StateEstimate{};
+    return;
+  }
+  watch_until_ = stamp + config_.return_watch;
+}
+
+bool FilterEngine::watchForReturn(const StereoGeometry& geometry, double stamp, FrameResult& result)
+{
+  if (!watch_anchor_.valid)
+    return false;
+  const double reach = ownReach(stamp);
+  const Eigen::Vector3d& anchor = watch_anchor_.position;
+  // Over: its time is up, or the track is now where the object's own motion could have taken it.
+  if (!(stamp <= watch_until_) || !(stamp > watch_anchor_stamp_) || !result.estimate.valid ||
+      (result.estimate.position - anchor).norm() <= reach || !(anchor.z() > 0.0))
+  {
+    watch_anchor_ = StateEstimate{};
+    return false;
+  }
+  // The local search around where the object was lost, as far as its own motion reaches (in pixels at that depth),
+  // at the size the object has there.
+  ImageTrack track;
+  track.left = geometry.projectLeft(anchor);
+  track.disparity = track.left.u - geometry.projectRight(anchor).u;
+  track.radius = geometry.fx() * target_radius_ / anchor.z();
+  track.reach = geometry.fx() * reach / anchor.z();
+  track.enough = std::numeric_limits<double>::infinity();  // the whole reach, even where the place itself scores
+  const LocalMatch match = local_search_.search(
+      track, geometry.width(), geometry.height(),
+      [this](const ImageHypotheses& hyp, Eigen::VectorXd& ll, Eigen::VectorXd& sim) { scoreLocally(hyp, ll, sim); },
+      [this](const ImageHypotheses& left, const ImageHypotheses& right, Eigen::VectorXd& ll) {
+        scorePairsLocally(left, right, ll);
+      });
+  // Seen there as a track must see it to hold it (the search's pair, the lower of its two views, scores below the
+  // best of a cloud of particles: 0.79-0.85 against 0.93 on a drawn scene's ball), and not where the track already is.
+  const double bar = std::max(config_.found_similarity, hold_reference_ - config_.hold_margin);
+  const bool apart = match.found && std::hypot(match.left.u - result.estimate.left.u,
+                                               match.left.v - result.estimate.left.v) > 2.0 * match.radius;
+  watch_hits_ = match.found && match.similarity >= bar && apart ? watch_hits_ + 1 : 0;
+  if (watch_hits_ < std::max(1, config_.found_frames))
+    return false;
+  // Back to the object: every set around the match, arriving from where it was lost over the time since.
+  seedAround(geometry, match.left, match.left.u - match.right.u, std::max(0.5, 0.5 * match.step), &watch_anchor_,
+             stamp - watch_anchor_stamp_);
+  const StateEstimate moved = state_model_->estimate(geometry, sets_, config_.estimator, config_.density_radius);
+  if (moved.valid)
+    result.estimate = moved;
+  result.evidence = match.similarity;
+  vouched_estimate_ = StateEstimate{};  // no jump arrives from the look-alike's track
+  track_known_ = 0;
+  watch_anchor_ = StateEstimate{};
+  return true;
 }
 
 void FilterEngine::rememberTrack(bool vouched, double stamp)
@@ -1236,7 +1333,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     seedAroundAcquisition(geometry);
     acquired_.pending = false;
     state_ = TrackState::Tracking;
-    vouched_estimate_ = seen_estimate_ = StateEstimate{};
+    vouched_estimate_ = seen_estimate_ = watch_anchor_ = StateEstimate{};
     seen_count_ = unseen_count_ = unsure_count_ = state_frames_ = 0;
   }
   else if (!initialised_)
@@ -1428,14 +1525,21 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     result.estimate.valid = false;
   }
   result.support = support;
+  const TrackState before = state_;
   updateTrackState(support, result);
+  // Found again far from where the object was lost: watch there (return_watch); moved back there when it returns.
+  bool returned = false;
+  if (state_ == TrackState::Tracking && before != TrackState::Tracking && track_reference_ >= 0.0)
+    startReturnWatch(result.estimate, frame.stamp);
+  else if (state_ == TrackState::Tracking && watch_anchor_.valid)
+    returned = watchForReturn(geometry, frame.stamp, result);
   if (track_reference_ < 0.0 && support == Support::Seen && state_ == TrackState::Tracking)
     track_reference_ = hold_reference_ = result.evidence;
   if (state_ == TrackState::Tracking && support == Support::Seen && hold_reference_ >= 0.0)
     hold_reference_ =
         std::min(track_reference_, hold_reference_ + config_.hold_follow * (result.evidence - hold_reference_));
-  if (support == Support::Seen && state_ == TrackState::Tracking)
-    adaptTargets();
+  if (support == Support::Seen && state_ == TrackState::Tracking && !returned)
+    adaptTargets();  // not where the sets have just been moved from
   last_estimate_ = state_ == TrackState::Tracking ? result.estimate : StateEstimate{};
   if (state_ != TrackState::Tracking)
     vouched_estimate_ = StateEstimate{};

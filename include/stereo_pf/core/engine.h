@@ -141,6 +141,14 @@ struct EngineConfig
   /// 40 -> 34, successful 171 against 173 (the runs it starts now are lost later; single runs flip either way); the
   /// real pitches at seeds 1-20 as before (the ball is found within two radii). 0: two radii.
   double start_speed = 20.0;
+  /// s; the return watch. A lost track found again farther from where it lost the object than the object's own
+  /// motion explains (reacquire_speed_factor times its speed there, times the time since, plus two radii) may have
+  /// taken a look-alike while the object was hidden: for this long after, every frame, the local search also looks
+  /// for the object within that reach of where it was lost. When it finds it there, as similar as the object is
+  /// (what a re-acquisition needs: found_similarity and reacquire_margin), found_frames frames in a row, the track
+  /// moves back there. Two look-alikes differ only in where they are: the object comes out where it went in.
+  /// 0: no watch.
+  double return_watch = 3.0;
   /// Share of the redrawn particles proposed from the observation models' target maps (a left pixel drawn
   /// where the target's appearance is, a right pixel along the same row), the rest from the prior.
   double proposal_fraction = 0.5;
@@ -312,6 +320,20 @@ private:
   /// returns how many. `stamp`: this frame's (the track's image motion is carried over the time since its last place,
   /// at most kMaxPredictedPeriods frame periods; with no motion known, the search reaches start_speed times that).
   int proposeLocally(const StereoGeometry& geometry, int count, double stamp);
+  /// The local search's scorers: the cues that weigh a track (not the refining ones, nor those comparing the two
+  /// views, nor untrusted ones) add their log-likelihoods, and the mean similarity of those that are evidence...
+  void scoreLocally(const ImageHypotheses& hyp, Eigen::VectorXd& ll, Eigen::VectorXd& sim);
+  /// ... and the cues comparing the two views add theirs for left i with right i.
+  void scorePairsLocally(const ImageHypotheses& left, const ImageHypotheses& right, Eigen::VectorXd& ll);
+  /// The return watch (EngineConfig::return_watch), on the frame a lost track is found again (`estimate`, at
+  /// `stamp`): watch where the object was lost when that estimate is beyond the object's own reach from there.
+  void startReturnWatch(const StateEstimate& estimate, double stamp);
+  /// ... and on every later tracking frame while it runs: look for the object within its own reach of where it was
+  /// lost; after found_frames frames in a row that find it there, away from the track, move every set there (the
+  /// result's estimate with them). Returns true when it moved them.
+  bool watchForReturn(const StereoGeometry& geometry, double stamp, FrameResult& result);
+  /// How far the object can have gone by its own motion from where the watched track lost it, at `stamp`, m.
+  double ownReach(double stamp) const;
   /// True when an enabled cue is not a refining one (refining cues then come second, after the others).
   bool anyNonRefiningCue() const;
   /// True when `m`'s similarity counts towards the evidence that the target is seen (among the cues that compare each
@@ -325,6 +347,11 @@ private:
   /// radius, its disparity by half a pixel, through StateModel::seedFromStereo (rows it rejects keep their
   /// prior draw).
   void seedAroundAcquisition(const StereoGeometry& geometry);
+  /// Draw every set around the pair (left, left - disparity), its left pixel jittered by `lateral` px (sd), its
+  /// disparity by half a pixel, through StateModel::seedFromStereo; uniform weights. With `from`, each seeded
+  /// particle arrives from it in `dt` (StateModel::setArrival).
+  void seedAround(const StereoGeometry& geometry, const Pixel& left, double disparity, double lateral,
+                  const StateEstimate* from, double dt);
   /// After a frame in which the tracked object was seen: every model's adapt() at the best particle's views.
   void adaptTargets();
   /// The cache's gain for each view this frame (EngineConfig::gain_compensation); the brightness the target
@@ -425,6 +452,13 @@ private:
   int track_known_ = 0;
   double track_radius_ = 0.0;  ///< the tracked hypotheses' median apparent radius in the left image, px
   LocalSearch local_search_;
+  /// The return watch (return_watch): where and when the last track lost the object and its speed there (the
+  /// anchor; invalid: no watch), until when it runs, and how many frames in a row found the object there.
+  StateEstimate watch_anchor_;
+  double watch_anchor_stamp_ = 0.0;
+  double watch_anchor_speed_ = 0.0;
+  double watch_until_ = 0.0;
+  int watch_hits_ = 0;
   int local_proposals_ = 0;  ///< how many of proposals_ (the last ones) the local search made this frame
   /// Per set: this frame's recovery jumps are its first jump_rows_[s] particles (0: none). The refining stage
   /// keeps their share and the rest's apart (see refineSecondStage()).
