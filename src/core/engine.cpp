@@ -195,6 +195,9 @@ const std::vector<EngineField>& engineFields()
                                   "s; after a lost track is found again beyond the object's own reach of where it was "
                                   "lost, watch there this long and move the track back when the object is seen there "
                                   "(0: off)"),
+    doubleField<&C::centre_sigma>("centre_sigma", 0.0, 10.0, true,
+                                  "the published covariance adds (this x the learned radius)^2 on each axis: where "
+                                  "in the object its centre lies (0: the particle cloud's spread alone)"),
     doubleField<&C::proposal_min_depth>("proposal_min_depth", 1e-3, 1e6, false,
                                         "m; nearest depth a proposal may have"),
     doubleField<&C::refine_jitter>("refine_jitter", 0.0, 10.0, true,
@@ -1517,6 +1520,9 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     if (coarse.valid)
       result.estimate.covariance += coarse.covariance;
   }
+  // ... and where in the object its centre lies, which no particle knows (centre_sigma).
+  if (result.estimate.valid && target_radius_ > 0.0 && config_.centre_sigma > 0.0)
+    result.estimate.covariance.diagonal().array() += std::pow(config_.centre_sigma * target_radius_, 2);
   Support support = judge(result.evidence, contrast, background_measured, one_view_seen,
                           withinReacquireReach(result.estimate, frame.stamp));
   if (escaped || (result.estimate.valid && !volume_.containsDepth(result.estimate.position.z())))
