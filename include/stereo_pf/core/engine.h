@@ -144,10 +144,10 @@ struct EngineConfig
   /// s; the return watch. A lost track found again farther from where it lost the object than the object's own
   /// motion explains (reacquire_speed_factor times its speed there, times the time since, plus two radii) may have
   /// taken a look-alike while the object was hidden: for this long after, every frame, the local search also looks
-  /// for the object within that reach of where it was lost. When it finds it there, as similar as the object is
-  /// (what a re-acquisition needs: found_similarity and reacquire_margin), found_frames frames in a row, the track
-  /// moves back there. Two look-alikes differ only in where they are: the object comes out where it went in.
-  /// 0: no watch.
+  /// for the object within that reach of where it was lost. When it sees it there as a track must (found_similarity,
+  /// and within hold_margin of what the object scores: the search's pair, the lower of its two views, scores below
+  /// the best particle of a cloud), away from the track, found_frames frames in a row, every set moves back there.
+  /// Two look-alikes differ only in where they are: the object comes out where it went in. 0: no watch.
   double return_watch = 3.0;
   /// Share of the redrawn particles proposed from the observation models' target maps (a left pixel drawn
   /// where the target's appearance is, a right pixel along the same row), the rest from the prior.
