@@ -737,12 +737,7 @@ int FilterEngine::proposeLocally(const StereoGeometry& geometry, int count, doub
     track.reach = std::min(config_.start_speed * ahead * track.disparity / geometry.baseline(),
                            static_cast<double>(std::max(geometry.width(), geometry.height())));
   }
-  const LocalMatch match = local_search_.search(
-      track, geometry.width(), geometry.height(),
-      [this](const ImageHypotheses& hyp, Eigen::VectorXd& ll, Eigen::VectorXd& sim) { scoreLocally(hyp, ll, sim); },
-      [this](const ImageHypotheses& left, const ImageHypotheses& right, Eigen::VectorXd& ll) {
-        scorePairsLocally(left, right, ll);
-      });
+  const LocalMatch match = searchLocally(geometry, track);
   // A match the evidence would call unseen proposes nothing (an object growing or turning beyond what its
   // template knows still scores above that while it is in view).
   if (!match.found || match.similarity < config_.lost_similarity)
@@ -804,6 +799,16 @@ void FilterEngine::scorePairsLocally(const ImageHypotheses& left, const ImageHyp
   }
 }
 
+LocalMatch FilterEngine::searchLocally(const StereoGeometry& geometry, const ImageTrack& track)
+{
+  return local_search_.search(
+      track, geometry.width(), geometry.height(),
+      [this](const ImageHypotheses& hyp, Eigen::VectorXd& ll, Eigen::VectorXd& sim) { scoreLocally(hyp, ll, sim); },
+      [this](const ImageHypotheses& left, const ImageHypotheses& right, Eigen::VectorXd& ll) {
+        scorePairsLocally(left, right, ll);
+      });
+}
+
 double FilterEngine::ownReach(double stamp) const
 {
   const double since = std::max(0.0, stamp - watch_anchor_stamp_);
@@ -853,12 +858,7 @@ bool FilterEngine::watchForReturn(const StereoGeometry& geometry, double stamp, 
   track.radius = geometry.fx() * target_radius_ / anchor.z();
   track.reach = geometry.fx() * reach / anchor.z();
   track.enough = std::numeric_limits<double>::infinity();  // the whole reach, even where the place itself scores
-  const LocalMatch match = local_search_.search(
-      track, geometry.width(), geometry.height(),
-      [this](const ImageHypotheses& hyp, Eigen::VectorXd& ll, Eigen::VectorXd& sim) { scoreLocally(hyp, ll, sim); },
-      [this](const ImageHypotheses& left, const ImageHypotheses& right, Eigen::VectorXd& ll) {
-        scorePairsLocally(left, right, ll);
-      });
+  const LocalMatch match = searchLocally(geometry, track);
   // Seen there as a track must see it to hold it (the search's pair, the lower of its two views, scores below the
   // best of a cloud of particles: 0.79-0.85 against 0.93 on a drawn scene's ball), and not where the track already is.
   const double bar = std::max(config_.found_similarity, hold_reference_ - config_.hold_margin);

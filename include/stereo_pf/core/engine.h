@@ -332,6 +332,8 @@ private:
   void scoreLocally(const ImageHypotheses& hyp, Eigen::VectorXd& ll, Eigen::VectorXd& sim);
   /// ... and the cues comparing the two views add theirs for left i with right i.
   void scorePairsLocally(const ImageHypotheses& left, const ImageHypotheses& right, Eigen::VectorXd& ll);
+  /// The local search (local_search_) for `track` in this frame, scored by scoreLocally() and scorePairsLocally().
+  LocalMatch searchLocally(const StereoGeometry& geometry, const ImageTrack& track);
   /// The return watch (EngineConfig::return_watch), on the frame a lost track is found again (`estimate`, at
   /// `stamp`): watch where the object was lost when that estimate is beyond the object's own reach from there.
   void startReturnWatch(const StateEstimate& estimate, double stamp);
