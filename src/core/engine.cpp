@@ -195,6 +195,10 @@ const std::vector<EngineField>& engineFields()
                                   "s; after a lost track is found again beyond the object's own reach of where it was "
                                   "lost, watch there this long and move the track back when the object is seen there "
                                   "(0: off)"),
+    doubleField<&C::lookalike_memory>("lookalike_memory", 0.0, 1e3, true,
+                                      "s; a place away from the track where the recovery search sees what the object "
+                                      "scores is remembered this long after it was last seen there, and a lost track "
+                                      "is not found again there (0: off)"),
     doubleField<&C::centre_sigma>("centre_sigma", 0.0, 10.0, true,
                                   "the published covariance adds (this x the learned radius)^2 on each axis: where "
                                   "in the object its centre lies (0: the particle cloud's spread alone)"),
@@ -313,6 +317,7 @@ void FilterEngine::applyPending()
     state_ = TrackState::Searching;
     seen_count_ = unseen_count_ = unsure_count_ = state_frames_ = 0;
     seen_estimate_ = watch_anchor_ = StateEstimate{};  // a restart searches afresh, not near the last track
+    lookalikes_.clear();
   }
   // Last, and with the flag cleared first: a plugin that rejects its new parameters throws out of step()
   // once, not on every later frame, and the restart above is not lost.
@@ -568,6 +573,7 @@ bool FilterEngine::loadTarget(const std::string& path, std::string& error)
     target_brightness_ = std::isfinite(brightness) && brightness > 0.0 ? brightness : -1.0;
     track_reference_ = hold_reference_ = -1.0;
     seen_estimate_ = watch_anchor_ = StateEstimate{};
+    lookalikes_.clear();
     return true;
   }
   catch (const cv::Exception& e)
@@ -813,6 +819,94 @@ double FilterEngine::ownReach(double stamp) const
 {
   const double since = std::max(0.0, stamp - watch_anchor_stamp_);
   return config_.reacquire_speed_factor * watch_anchor_speed_ * since + 2.0 * target_radius_;
+}
+
+bool FilterEngine::rowPosition(const StereoGeometry& geometry, int s, int i, Eigen::Vector3d& position) const
+{
+  const ImageHypotheses* left = nullptr;
+  const ImageHypotheses* right = nullptr;
+  for (const ImageHypotheses& hyp : hypotheses_[s])
+    (hyp.view == View::Left ? left : right) = &hyp;
+  if (!left || !right || i >= left->size() || i >= right->size() || !left->valid[i] || !right->valid[i])
+    return false;
+  return geometry.triangulate(Pixel{ left->u[i], left->v[i] }, right->u[i], position) && position.allFinite();
+}
+
+double FilterEngine::lookalikeReach(double seen_stamp, double stamp) const
+{
+  return 2.0 * target_radius_ + config_.reacquire_min_speed * std::max(0.0, stamp - seen_stamp);
+}
+
+void FilterEngine::rememberLookalike(const Eigen::Vector3d& position, double stamp)
+{
+  for (Lookalike& l : lookalikes_)
+    if ((l.position - position).norm() <= lookalikeReach(l.stamp, stamp))
+    {
+      l = Lookalike{ position, stamp, l.sightings + 1 };
+      return;
+    }
+  if (lookalikes_.size() >= kMaxLookalikes)
+    lookalikes_.erase(std::min_element(lookalikes_.begin(), lookalikes_.end(),
+                                       [](const Lookalike& a, const Lookalike& b) { return a.stamp < b.stamp; }));
+  lookalikes_.push_back(Lookalike{ position, stamp, 1 });
+}
+
+int FilterEngine::excludeLookalikes(const StereoGeometry& geometry, int s, double cues, double stamp)
+{
+  if (lookalikes_.empty() || hypotheses_[s].empty())
+    return 0;
+  // In the set's first view: each look-alike's image, out to its reach at its depth.
+  const ImageHypotheses& h = hypotheses_[s][0];
+  const size_t m = lookalikes_.size();
+  std::vector<Pixel> centre(m);
+  std::vector<double> radius(m, -1.0);
+  std::vector<int> best(m, -1);
+  for (size_t k = 0; k < m; ++k)
+  {
+    const Lookalike& l = lookalikes_[k];
+    if (l.position.z() > 0.0 && l.sightings >= kLookalikeSightings)
+    {
+      centre[k] = geometry.project(l.position, h.view);
+      radius[k] = geometry.fx() * lookalikeReach(l.stamp, stamp) / l.position.z();
+    }
+  }
+  ParticleSet& p = sets_[s];
+  // Seen there as the recovery search sees a look-alike: one particle scoring as a track must.
+  const double bar = std::max(config_.found_similarity, hold_reference_ - config_.hold_margin);
+  int excluded = 0;
+  for (int i = 0; i < h.size(); ++i)
+  {
+    if (!h.valid[i] || !std::isfinite(h.u[i]) || !std::isfinite(h.v[i]))
+      continue;
+    size_t k = 0;
+    while (k < m && !(std::hypot(h.u[i] - centre[k].u, h.v[i] - centre[k].v) <= radius[k]))
+      ++k;
+    if (k == m)
+      continue;
+    if (cues > 0.0 && sum_sim_[i] / cues >= bar && (best[k] < 0 || sum_sim_[i] > sum_sim_[best[k]]))
+      best[k] = i;
+    p.log_weights[i] = -std::numeric_limits<double>::infinity();
+    sum_sim_[i] = 0.0;
+    view_sim_[0][i] = view_sim_[1][i] = 0.0;
+    ++excluded;
+  }
+  // Still there: remembered on, where it is now in the image, at the depth it was seen at (what one particle of a
+  // lost set says of its depth is loose: the best ones put a look-alike 0.5-2.4 m away on successive frames).
+  for (size_t k = 0; k < m; ++k)
+  {
+    if (best[k] < 0)
+      continue;
+    Lookalike& l = lookalikes_[k];
+    const double z = l.position.z();
+    const int i = best[k];
+    const Eigen::Vector3d ray((h.u[i] - geometry.cx()) / geometry.fx(), (h.v[i] - geometry.cy()) / geometry.fy(), 1.0);
+    l.position = z * ray;
+    if (h.view == View::Right)
+      l.position.x() += geometry.baseline();
+    l.stamp = stamp;
+    ++l.sightings;
+  }
+  return excluded;
 }
 
 void FilterEngine::startReturnWatch(const StateEstimate& estimate, double stamp)
@@ -1329,6 +1423,12 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
   result.dt = dt;
 
   jump_rows_.assign(sets_.size(), 0);
+  lookalike_sighted_ = false;
+  lookalikes_.erase(std::remove_if(lookalikes_.begin(), lookalikes_.end(),
+                                   [&](const Lookalike& l) {
+                                     return !(frame.stamp - l.stamp <= config_.lookalike_memory);  // forgotten
+                                   }),
+                    lookalikes_.end());
   if (acquired_.pending)
   {
     // The user's box says where the object is: start there, tracking.
@@ -1337,6 +1437,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     acquired_.pending = false;
     state_ = TrackState::Tracking;
     vouched_estimate_ = seen_estimate_ = watch_anchor_ = StateEstimate{};
+    lookalikes_.clear();
     seen_count_ = unseen_count_ = unsure_count_ = state_frames_ = 0;
   }
   else if (!initialised_)
@@ -1430,6 +1531,9 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
       return refining(m) ? Use{ config_.refine_search_weight, false } : Use{ 1.0, isEvidence(m) };
     });
     escaped = boundToViewingVolume(s) == 0 || escaped;
+    // A lost track is not found again on another object like it that was seen beside the track (lookalike_memory).
+    if (!tracking && track_reference_ >= 0.0)
+      excludeLookalikes(geometry, s, cues, frame.stamp);
     // A recovery jump to another place than the track's counts, like a re-acquisition, only where the evidence
     // cues see what the object itself scores (reacquire_margin). A look-alike scoring well below it would
     // otherwise take the track whenever the object's own evidence sinks (near the camera, against other
@@ -1440,6 +1544,16 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
       jumped_.assign(n, 0);
       std::fill(jumped_.begin(), jumped_.begin() + jumps, 1);
       awayFromTrack(hypotheses_[s][0], jumped_);
+      // The best jump away from the track that scores as a track must (hold_margin below what the object scores: one
+      // particle, not a cloud settled on it): another object like it (lookalike_memory), remembered when the frame sees
+      // the object on the track too.
+      int sighted = -1;
+      const double like = std::max(config_.found_similarity, hold_reference_ - config_.hold_margin);
+      for (int i = 0; i < jumps; ++i)
+        if (jumped_[i] && sum_sim_[i] / cues >= like && (sighted < 0 || sum_sim_[i] > sum_sim_[sighted]))
+          sighted = i;
+      if (sighted >= 0 && config_.lookalike_memory > 0.0 && !lookalike_sighted_)
+        lookalike_sighted_ = rowPosition(geometry, s, sighted, lookalike_sighting_);
       for (int i = 0; i < jumps; ++i)
         if (jumped_[i] && sum_sim_[i] / cues < track_reference_ - config_.reacquire_margin)
         {
@@ -1546,6 +1660,18 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
         std::min(track_reference_, hold_reference_ + config_.hold_follow * (result.evidence - hold_reference_));
   if (support == Support::Seen && state_ == TrackState::Tracking && !returned)
     adaptTargets();  // not where the sets have just been moved from
+  if (support == Support::Seen && state_ == TrackState::Tracking && result.estimate.valid && !returned)
+  {
+    // The track is where it is seen: no look-alike there (an object that passes one is not barred from it later).
+    const Eigen::Vector3d& at = result.estimate.position;
+    lookalikes_.erase(std::remove_if(lookalikes_.begin(), lookalikes_.end(),
+                                     [&](const Lookalike& l) {
+                                       return (l.position - at).norm() <= lookalikeReach(frame.stamp, frame.stamp);
+                                     }),
+                      lookalikes_.end());
+    if (lookalike_sighted_ && (lookalike_sighting_ - at).norm() > lookalikeReach(frame.stamp, frame.stamp))
+      rememberLookalike(lookalike_sighting_, frame.stamp);
+  }
   last_estimate_ = state_ == TrackState::Tracking ? result.estimate : StateEstimate{};
   if (state_ != TrackState::Tracking)
     vouched_estimate_ = StateEstimate{};
