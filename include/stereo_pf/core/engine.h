@@ -154,9 +154,11 @@ struct EngineConfig
   /// track, holds another object like it: remembered until this long after it was last seen, and once seen on two
   /// such frames, a lost track is not found again there. Its particles within two radii, plus reacquire_min_speed
   /// times the time since, of the place weigh nothing and are no evidence; the best of them that scores so renews the
-  /// memory where it is in the image. On a drawn scene a ball left the view while its twin stayed: the lost track
-  /// was found again on the twin and kept it for the rest of the clip (57 % of range RMS; now lost until the ball
-  /// comes back: 3.4 %). Needs a state whose sets are seen in both views (not the stereo-constraints model). 0: off.
+  /// memory where it is in the image. On drawn scenes a ball left the view while its twin stayed: the lost track was
+  /// found again on the twin and kept it for the rest of the clip (38 % of range RMS at every seed; now it is lost
+  /// until the ball comes back: 1.0-2.7 % on one scene; 1.5 % at one seed of the other, whose other two seeds still
+  /// end on the twin: at one of them the track moves to it while tracking, as it crosses in front of the ball). Needs
+  /// a state whose sets are seen in both views (not the stereo-constraints model). 0: off.
   double lookalike_memory = 3.0;
   /// Share of the redrawn particles proposed from the observation models' target maps (a left pixel drawn
   /// where the target's appearance is, a right pixel along the same row), the rest from the prior.
