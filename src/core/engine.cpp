@@ -196,9 +196,9 @@ const std::vector<EngineField>& engineFields()
                                   "lost, watch there this long and move the track back when the object is seen there "
                                   "(0: off)"),
     doubleField<&C::lookalike_memory>("lookalike_memory", 0.0, 1e3, true,
-                                      "s; a place away from the track where the recovery search sees what the object "
-                                      "scores is remembered this long after it was last seen there, and a lost track "
-                                      "is not found again there (0: off)"),
+                                      "s; a place away from the track where the recovery search sees what a track "
+                                      "must score (hold_margin) is remembered this long after it was last seen there, "
+                                      "and a lost track is not found again there (0: off)"),
     doubleField<&C::centre_sigma>("centre_sigma", 0.0, 10.0, true,
                                   "the published covariance adds (this x the learned radius)^2 on each axis: where "
                                   "in the object its centre lies (0: the particle cloud's spread alone)"),
