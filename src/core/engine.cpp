@@ -821,12 +821,18 @@ double FilterEngine::ownReach(double stamp) const
   return config_.reacquire_speed_factor * watch_anchor_speed_ * since + 2.0 * target_radius_;
 }
 
+const ImageHypotheses* FilterEngine::hypothesesOf(int s, View view) const
+{
+  for (const ImageHypotheses& hyp : hypotheses_[s])
+    if (hyp.view == view)
+      return &hyp;
+  return nullptr;
+}
+
 bool FilterEngine::rowPosition(const StereoGeometry& geometry, int s, int i, Eigen::Vector3d& position) const
 {
-  const ImageHypotheses* left = nullptr;
-  const ImageHypotheses* right = nullptr;
-  for (const ImageHypotheses& hyp : hypotheses_[s])
-    (hyp.view == View::Left ? left : right) = &hyp;
+  const ImageHypotheses* left = hypothesesOf(s, View::Left);
+  const ImageHypotheses* right = hypothesesOf(s, View::Right);
   if (!left || !right || i >= left->size() || i >= right->size() || !left->valid[i] || !right->valid[i])
     return false;
   return geometry.triangulate(Pixel{ left->u[i], left->v[i] }, right->u[i], position) && position.allFinite();
@@ -851,12 +857,14 @@ void FilterEngine::rememberLookalike(const Eigen::Vector3d& position, double sta
   lookalikes_.push_back(Lookalike{ position, stamp, 1 });
 }
 
-int FilterEngine::excludeLookalikes(const StereoGeometry& geometry, int s, double cues, double stamp)
+void FilterEngine::excludeLookalikes(const StereoGeometry& geometry, int s, double cues, double stamp)
 {
-  if (lookalikes_.empty() || hypotheses_[s].empty())
-    return 0;
-  // In the set's first view: each look-alike's image, out to its reach at its depth.
-  const ImageHypotheses& h = hypotheses_[s][0];
+  // In the left image (a look-alike is remembered only by sets seen in both views): each look-alike's image, out to
+  // its reach at its depth.
+  const ImageHypotheses* left = hypothesesOf(s, View::Left);
+  if (lookalikes_.empty() || !left)
+    return;
+  const ImageHypotheses& h = *left;
   const size_t m = lookalikes_.size();
   std::vector<Pixel> centre(m);
   std::vector<double> radius(m, -1.0);
@@ -866,14 +874,13 @@ int FilterEngine::excludeLookalikes(const StereoGeometry& geometry, int s, doubl
     const Lookalike& l = lookalikes_[k];
     if (l.position.z() > 0.0 && l.sightings >= kLookalikeSightings)
     {
-      centre[k] = geometry.project(l.position, h.view);
+      centre[k] = geometry.projectLeft(l.position);
       radius[k] = geometry.fx() * lookalikeReach(l.stamp, stamp) / l.position.z();
     }
   }
   ParticleSet& p = sets_[s];
   // Seen there as the recovery search sees a look-alike: one particle scoring as a track must.
   const double bar = std::max(config_.found_similarity, hold_reference_ - config_.hold_margin);
-  int excluded = 0;
   for (int i = 0; i < h.size(); ++i)
   {
     if (!h.valid[i] || !std::isfinite(h.u[i]) || !std::isfinite(h.v[i]))
@@ -888,7 +895,6 @@ int FilterEngine::excludeLookalikes(const StereoGeometry& geometry, int s, doubl
     p.log_weights[i] = -std::numeric_limits<double>::infinity();
     sum_sim_[i] = 0.0;
     view_sim_[0][i] = view_sim_[1][i] = 0.0;
-    ++excluded;
   }
   // Still there: remembered on, where it is now in the image, at the depth it was seen at (what one particle of a
   // lost set says of its depth is loose: the best ones put a look-alike 0.5-2.4 m away on successive frames).
@@ -897,16 +903,10 @@ int FilterEngine::excludeLookalikes(const StereoGeometry& geometry, int s, doubl
     if (best[k] < 0)
       continue;
     Lookalike& l = lookalikes_[k];
-    const double z = l.position.z();
-    const int i = best[k];
-    const Eigen::Vector3d ray((h.u[i] - geometry.cx()) / geometry.fx(), (h.v[i] - geometry.cy()) / geometry.fy(), 1.0);
-    l.position = z * ray;
-    if (h.view == View::Right)
-      l.position.x() += geometry.baseline();
+    l.position = geometry.backProject(Pixel{ h.u[best[k]], h.v[best[k]] }, l.position.z());
     l.stamp = stamp;
     ++l.sightings;
   }
-  return excluded;
 }
 
 void FilterEngine::startReturnWatch(const StateEstimate& estimate, double stamp)

@@ -354,6 +354,8 @@ private:
   bool watchForReturn(const StereoGeometry& geometry, double stamp, FrameResult& result);
   /// How far the object can have gone by its own motion from where the watched track lost it, at `stamp`, m.
   double ownReach(double stamp) const;
+  /// Set `s`'s hypotheses in `view` this frame (null: the set is not seen in it).
+  const ImageHypotheses* hypothesesOf(int s, View view) const;
   /// The look-alike memory (EngineConfig::lookalike_memory): row `i` of set `s`'s 3D position, triangulated from its
   /// hypotheses in the two views (false when the set is not seen in both)...
   bool rowPosition(const StereoGeometry& geometry, int s, int i, Eigen::Vector3d& position) const;
@@ -362,9 +364,9 @@ private:
   double lookalikeReach(double seen_stamp, double stamp) const;
   /// ... remember one seen at `position` (the entry whose reach holds it is renewed, else one is added) ...
   void rememberLookalike(const Eigen::Vector3d& position, double stamp);
-  /// ... and while lost: set `s`'s particles within reach of one seen kLookalikeSightings times weigh nothing and are
-  /// no evidence (the best of them scoring as a track must renews it, where it is); returns how many.
-  int excludeLookalikes(const StereoGeometry& geometry, int s, double cues, double stamp);
+  /// ... and while lost: set `s`'s particles whose left image lies within reach of one seen kLookalikeSightings times
+  /// weigh nothing and are no evidence (the best of them scoring as a track must renews it, where it is).
+  void excludeLookalikes(const StereoGeometry& geometry, int s, double cues, double stamp);
   /// True when an enabled cue is not a refining one (refining cues then come second, after the others).
   bool anyNonRefiningCue() const;
   /// True when `m`'s similarity counts towards the evidence that the target is seen (among the cues that compare each
