@@ -150,6 +150,16 @@ class Metrics(unittest.TestCase):
         self.assertEqual(g["referenced_frames"], 10)
         self.assertEqual(g["reference_missing"], 1)
 
+    def test_the_summary_counts_the_runs_that_went_without_an_estimate_in_view(self):
+        # four runs that converged: in three the median share is small, the fourth went without one in half the
+        # visible frames; the summary gives the median, the mean and that one run
+        runs = []
+        for share in (0.0, 0.0, 10.0, 50.0):
+            r = argparse.Namespace(figures={"no_estimate_pct": share})
+            runs.append(r)
+        self.assertEqual(stress.no_estimate_text(runs), "5.0 / 15.0; 1 over 20 %")
+        self.assertEqual(stress.no_estimate_text([]), "-")
+
 
 class Draw(unittest.TestCase):
     """The scene draw: deterministic from the seed, and within the limits the docstring states."""
