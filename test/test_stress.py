@@ -151,8 +151,8 @@ class Metrics(unittest.TestCase):
         self.assertEqual(g["reference_missing"], 1)
 
     def test_the_summary_counts_the_runs_that_went_without_an_estimate_in_view(self):
-        # four runs that converged: in three the median share is small, the fourth went without one in half the
-        # visible frames; the summary gives the median, the mean and that one run
+        # four runs that converged: three went without an estimate in at most a tenth of their visible frames, the
+        # fourth in half of them; the summary gives the median, the mean and that one run
         runs = []
         for share in (0.0, 0.0, 10.0, 50.0):
             r = argparse.Namespace(figures={"no_estimate_pct": share})
