@@ -4,6 +4,7 @@
 // disparity with sub-pixel precision, and handle bad input.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <limits>
@@ -407,7 +408,8 @@ int main(int argc, char** argv)
 
 // With only_while_tracking (the default) the engine consults the stereo cue only in frames that follow a
 // frame in the tracking state; without it (and not refining), in every frame. While tracking the local search
-// also asks it, over a few dozen disparities (counted apart from the particles' calls).
+// also asks it, over a few dozen disparities, and the engine, before the cues adapt, at the best particle alone
+// (EngineConfig::adapt_min_stereo): both counted apart from the particles' calls.
 namespace
 {
 constexpr int kParticles = 300;
@@ -417,17 +419,18 @@ class CountingStereoMatch : public StereoMatch
 public:
   int calls = 0;         ///< on the particle set
   int search_calls = 0;  ///< on the local search's disparities
+  int check_calls = 0;   ///< on one pair: the best particle's, before the cues adapt
   void evaluatePair(FeatureCache& cache, const ImageHypotheses& left, const ImageHypotheses& right,
                     Eigen::Ref<Eigen::VectorXd> log_likelihood, Eigen::Ref<Eigen::VectorXd> similarity) override
   {
-    ++(right.size() == kParticles ? calls : search_calls);
+    ++(right.size() == kParticles ? calls : right.size() == 1 ? check_calls : search_calls);
     StereoMatch::evaluatePair(cache, left, right, log_likelihood, similarity);
   }
 };
 
 // Frames (k) after which the engine was tracking, and the stereo cue's call count after each frame.
 void runEngine(bool only_while_tracking, std::vector<bool>& tracking_before, std::vector<int>& calls_after,
-               std::vector<int>* search_calls_after = nullptr)
+               std::vector<int>* search_calls_after = nullptr, std::vector<int>* check_calls_after = nullptr)
 {
   SceneDescription scene = loadScene(std::string(SCENES_DIR) + "/pendulum_uncluttered.yaml");
   scene.frames = 20;
@@ -461,6 +464,8 @@ void runEngine(bool only_while_tracking, std::vector<bool>& tracking_before, std
     calls_after.push_back(stereo->calls);
     if (search_calls_after)
       search_calls_after->push_back(stereo->search_calls);
+    if (check_calls_after)
+      check_calls_after->push_back(stereo->check_calls);
   }
 }
 }  // namespace
@@ -468,8 +473,8 @@ void runEngine(bool only_while_tracking, std::vector<bool>& tracking_before, std
 TEST(StereoMatch, EngineUsesItOnlyWhileTracking)
 {
   std::vector<bool> tracking_before;
-  std::vector<int> calls, search_calls;
-  runEngine(true, tracking_before, calls, &search_calls);
+  std::vector<int> calls, search_calls, check_calls;
+  runEngine(true, tracking_before, calls, &search_calls, &check_calls);
   ASSERT_EQ(calls.size(), 20u);
   ASSERT_FALSE(tracking_before[0]);  // the first frame is always a search
   EXPECT_EQ(calls[0], 0);
@@ -482,13 +487,96 @@ TEST(StereoMatch, EngineUsesItOnlyWhileTracking)
     // The local search: at most once a frame, and only while tracking.
     const int searched = search_calls[k] - (k > 0 ? search_calls[k - 1] : 0);
     EXPECT_LE(searched, tracking_before[k] ? 1 : 0) << "frame " << k;
+    // The views' agreement at the best particle: at most once a frame (one set), after a frame that tracks.
+    EXPECT_LE(check_calls[k] - (k > 0 ? check_calls[k - 1] : 0), 1) << "frame " << k;
   }
   EXPECT_GT(tracked, 10);  // it did track, so the cue was used
   EXPECT_GT(search_calls.back(), 5) << "the local search's disparities were scored by the views' agreement";
+  EXPECT_GT(check_calls.back(), 5) << "the views' agreement was not checked before the cues adapted";
 
   tracking_before.clear();
   calls.clear();
   runEngine(false, tracking_before, calls);
   for (size_t k = 0; k < calls.size(); ++k)
     EXPECT_EQ(calls[k], static_cast<int>(k) + 1) << "frame " << k;
+}
+
+// Before the cues adapt to the object's look, the engine asks the cues comparing the views how well the best
+// particle's two views agree (EngineConfig::adapt_min_stereo): an occluder coming over the object is at another
+// disparity, and a histogram adapting to it follows the occluder. Here the agreement at that one pair is scripted.
+namespace
+{
+class ScriptedAgreement : public StereoMatch
+{
+public:
+  double agreement = 1.0;  ///< the similarity of a single pair (the engine's check before adapting)
+  void evaluatePair(FeatureCache& cache, const ImageHypotheses& left, const ImageHypotheses& right,
+                    Eigen::Ref<Eigen::VectorXd> log_likelihood, Eigen::Ref<Eigen::VectorXd> similarity) override
+  {
+    StereoMatch::evaluatePair(cache, left, right, log_likelihood, similarity);
+    if (right.size() == 1)
+      similarity.setConstant(agreement);
+  }
+};
+
+class AdaptCounting : public ColourHSI
+{
+public:
+  int adapted = 0;
+  void adapt(FeatureCache& cache, const ImageHypotheses& estimate) override
+  {
+    ++adapted;
+    ColourHSI::adapt(cache, estimate);
+  }
+};
+
+/// adapt() calls on the colour cue over 20 frames of the pendulum, tracked from its box, with the best particle's
+/// views agreeing `agreement` and the engine adapting at `adapt_min_stereo`; `tracked`: frames tracked and seen.
+int adaptCalls(double agreement, double adapt_min_stereo, int& tracked)
+{
+  SceneDescription scene = loadScene(std::string(SCENES_DIR) + "/pendulum_uncluttered.yaml");
+  scene.frames = 20;
+  SceneRenderer renderer(scene);
+  auto state = std::make_shared<Position3D>();
+  state->initialize("state_model", Parameters());
+  auto colour = std::make_shared<AdaptCounting>();
+  colour->initialize("colour", Parameters());
+  auto stereo = std::make_shared<ScriptedAgreement>();
+  stereo->initialize("stereo", Parameters());
+  stereo->agreement = agreement;
+  EngineConfig config;
+  config.adapt_min_stereo = adapt_min_stereo;
+  FilterEngine engine(state, { colour, stereo }, config);
+  cv::Mat left, right;
+  tracked = 0;
+  for (int k = 0; k < renderer.frames(); ++k)
+  {
+    const StereoFrame frame = renderer.renderFrame(k, left, right);
+    if (k == 0)
+    {
+      std::string error;
+      EXPECT_TRUE(engine.learnTarget(frame, renderer.targetRoi(0), error)) << error;
+    }
+    const FrameResult r = engine.step(frame);
+    tracked += r.state == TrackState::Tracking && r.support == Support::Seen ? 1 : 0;
+  }
+  return colour->adapted;
+}
+}  // namespace
+
+TEST(StereoMatch, TheCuesAdaptOnlyWhereTheBestParticlesViewsAgree)
+{
+  const double at = EngineConfig().adapt_min_stereo;
+  ASSERT_GT(at, 0.0);
+  int tracked = 0;
+  // One set seen in two views: two adapt() calls per frame tracked and seen.
+  const int agreeing = adaptCalls(std::min(1.0, at + 0.05), at, tracked);
+  EXPECT_EQ(agreeing, 2 * tracked);
+  EXPECT_GT(tracked, 15);
+  const int disagreeing = adaptCalls(at - 0.05, at, tracked);
+  EXPECT_EQ(disagreeing, 0) << "adapted where the views disagree";
+  EXPECT_GT(tracked, 15);
+  const int unchecked = adaptCalls(at - 0.05, 0.0, tracked);
+  EXPECT_EQ(unchecked, 2 * tracked) << "adapt_min_stereo 0 must not check";
+  EXPECT_GT(tracked, 15);
 }

@@ -236,6 +236,9 @@ const std::vector<EngineField>& engineFields()
     boolField<&C::gain_compensation>("gain_compensation", true,
                                      "the colour cues see each view's pixels times the gain that brings its mean grey "
                                      "level to the learning frame's (0.5..2); false: as they are"),
+    doubleField<&C::adapt_min_stereo>("adapt_min_stereo", 0.0, 1.0, true,
+                                      "the models adapt on a seen frame only when the best particle's two views agree "
+                                      "at least this well (the cues comparing the views; 0: always)"),
   };
   return fields;
 }
@@ -392,6 +395,8 @@ void FilterEngine::adaptTargets()
   {
     Eigen::Index best = 0;
     sets_[s].weights.maxCoeff(&best);
+    if (!viewsAgreeForAdaptation(s, best))
+      continue;  // something else in one of the views: an occluder coming over the object, not its new look
     for (const ImageHypotheses& hyp : hypotheses_[s])
     {
       if (best >= hyp.size())
@@ -408,6 +413,36 @@ void FilterEngine::adaptTargets()
           m->adapt(cache_, one);
     }
   }
+}
+
+bool FilterEngine::viewsAgreeForAdaptation(int s, Eigen::Index i)
+{
+  if (!(config_.adapt_min_stereo > 0.0))
+    return true;
+  const ImageHypotheses* left = hypothesesOf(s, View::Left);
+  const ImageHypotheses* right = hypothesesOf(s, View::Right);
+  if (!left || !right || i >= left->size() || i >= right->size())
+    return true;
+  ImageHypotheses* one[2] = { &adapt_hyp_, &adapt_right_hyp_ };
+  const ImageHypotheses* from[2] = { left, right };
+  for (int v = 0; v < 2; ++v)
+  {
+    one[v]->view = from[v]->view;
+    one[v]->resize(1);
+    one[v]->u[0] = from[v]->u[i];
+    one[v]->v[0] = from[v]->v[i];
+    one[v]->radius[0] = from[v]->radius[i];
+    one[v]->valid[0] = from[v]->valid[i];
+  }
+  Eigen::VectorXd ll(1), sim(1);
+  for (auto& m : observation_models_)
+    if (m->enabled() && m->comparesViews())
+    {
+      m->evaluatePair(cache_, adapt_hyp_, adapt_right_hyp_, ll, sim);
+      if (!(sim[0] >= config_.adapt_min_stereo))
+        return false;
+    }
+  return true;
 }
 
 void FilterEngine::compensateGain()

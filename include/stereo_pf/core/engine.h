@@ -219,6 +219,12 @@ struct EngineConfig
   /// exposure, or a right camera brighter than the left, then moves no colour between intensity bins. False:
   /// the pixels as they are.
   bool gain_compensation = true;
+  /// The models adapt (ObservationModel::adapt()) on a seen frame only when the best particle's two views agree at
+  /// least this well (the lowest similarity there of the cues comparing the views; a set seen in one view only is
+  /// not checked). An occluder coming over the object is seen by the two cameras at other disparities than the
+  /// object: the views disagree while the adapting models would take in its look (drawn scene, a board over a box:
+  /// the best particle's stereo similarity 0.98 -> 0.70-0.75, and the colour histogram followed the board). 0: off.
+  double adapt_min_stereo = 0.85;
 
   /// Read from `params` (missing keys keep their defaults); throws ParameterError.
   static EngineConfig fromParameters(const Parameters& params);
@@ -385,8 +391,11 @@ private:
   /// particle arrives from it in `dt` (StateModel::setArrival).
   void seedAround(const StereoGeometry& geometry, const Pixel& left, double disparity, double lateral,
                   const StateEstimate* from, double dt);
-  /// After a frame in which the tracked object was seen: every model's adapt() at the best particle's views.
+  /// After a frame in which the tracked object was seen: every model's adapt() at the best particle's views, for
+  /// each set whose best particle's views agree (viewsAgreeForAdaptation).
   void adaptTargets();
+  /// Whether set s's particle i is seen alike in its two views, by adapt_min_stereo (true without both views).
+  bool viewsAgreeForAdaptation(int s, Eigen::Index i);
   /// The cache's gain for each view this frame (EngineConfig::gain_compensation); the brightness the target
   /// was learned at is taken from this frame when there is none yet (a target file without it).
   void compensateGain();
@@ -546,7 +555,7 @@ private:
 
   // scratch buffers kept across frames
   Eigen::VectorXd scratch_ll_, scratch_sim_, sum_sim_, prior_log_, refine_prior_;
-  ImageHypotheses background_hyp_, adapt_hyp_;
+  ImageHypotheses background_hyp_, adapt_hyp_, adapt_right_hyp_;
   Eigen::VectorXd background_ll_, background_sim_, background_sum_;
   std::vector<double> background_values_;
   std::vector<float> radius_scratch_;
