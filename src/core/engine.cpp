@@ -21,6 +21,17 @@ namespace
 const char* const kTargetSizeNode = "target_size";
 const char* const kCueTrustNode = "cue_trust";
 const char* const kPhotometryNode = "photometry";
+
+/// `one` set to hypothesis i of `from` alone (a particle's view, for the models' adapt() and the views' check).
+void takeOne(const ImageHypotheses& from, Eigen::Index i, ImageHypotheses& one)
+{
+  one.view = from.view;
+  one.resize(1);
+  one.u[0] = from.u[i];
+  one.v[0] = from.v[i];
+  one.radius[0] = from.radius[i];
+  one.valid[0] = from.valid[i];
+}
 }  // namespace
 
 std::string toString(TrackState state)
@@ -401,16 +412,10 @@ void FilterEngine::adaptTargets()
     {
       if (best >= hyp.size())
         continue;
-      ImageHypotheses& one = adapt_hyp_;
-      one.view = hyp.view;
-      one.resize(1);
-      one.u[0] = hyp.u[best];
-      one.v[0] = hyp.v[best];
-      one.radius[0] = hyp.radius[best];
-      one.valid[0] = hyp.valid[best];
+      takeOne(hyp, best, adapt_hyp_);
       for (auto& m : observation_models_)
         if (m->enabled())
-          m->adapt(cache_, one);
+          m->adapt(cache_, adapt_hyp_);
     }
   }
 }
@@ -423,17 +428,8 @@ bool FilterEngine::viewsAgreeForAdaptation(int s, Eigen::Index i)
   const ImageHypotheses* right = hypothesesOf(s, View::Right);
   if (!left || !right || i >= left->size() || i >= right->size())
     return true;
-  ImageHypotheses* one[2] = { &adapt_hyp_, &adapt_right_hyp_ };
-  const ImageHypotheses* from[2] = { left, right };
-  for (int v = 0; v < 2; ++v)
-  {
-    one[v]->view = from[v]->view;
-    one[v]->resize(1);
-    one[v]->u[0] = from[v]->u[i];
-    one[v]->v[0] = from[v]->v[i];
-    one[v]->radius[0] = from[v]->radius[i];
-    one[v]->valid[0] = from[v]->valid[i];
-  }
+  takeOne(*left, i, adapt_hyp_);
+  takeOne(*right, i, adapt_right_hyp_);
   Eigen::VectorXd ll(1), sim(1);
   for (auto& m : observation_models_)
     if (m->enabled() && m->comparesViews())
