@@ -556,6 +556,36 @@ TEST(LocalSearch, AnObjectThatReversedItsMotionIsFound)
   }
 }
 
+TEST(LocalSearch, AMovingObjectIsFollowedPastALookAlikeThatScoresBetter)
+{
+  // The object moved 30 px to the right in the last frame and went on; a sharp look-alike 40 px below where it went
+  // scores 1, inside the window the search covers (a window's similarity falls off over a few radii of its
+  // centre). A blurred object scoring 0.88, within LocalSearch::kTieMargin of the look-alike, is where its motion
+  // took it: it is followed. Blurred beyond that (0.7), the look-alike is the best the search can tell.
+  using namespace stereo_pf;
+  const ImageTrack track = trackAt300(30.0);
+  LocalSearch search;
+  for (const auto& [object, expected_v] : { std::pair{ 0.88, 200.0 }, std::pair{ 0.7, 240.0 } })
+  {
+    const HypothesisScorer score = [&](const ImageHypotheses& hyp, Eigen::VectorXd& ll, Eigen::VectorXd& sim) {
+      for (int i = 0; i < hyp.size(); ++i)
+      {
+        const double shift = hyp.view == View::Left ? 0.0 : 40.0;
+        auto bump = [&](double u, double v, double height) {
+          return height * std::max(0.0, 1.0 - std::hypot(hyp.u[i] - (u - shift), hyp.v[i] - v) / 25.0);
+        };
+        const double s = std::max(bump(330.0, 200.0, object), bump(330.0, 240.0, 1.0));
+        ll[i] += 10.0 * s;
+        sim[i] += s;
+      }
+    };
+    const LocalMatch m = search.search(track, 640, 480, score);
+    ASSERT_TRUE(m.found) << "object scoring " << object;
+    EXPECT_NEAR(m.left.u, 330.0, m.step) << "object scoring " << object;
+    EXPECT_NEAR(m.left.v, expected_v, m.step) << "object scoring " << object;
+  }
+}
+
 TEST(LocalSearch, WithNoMotionKnownItReachesAsFarAsItIsTold)
 {
   // A track with no motion known yet (its first frame after the box) of an object 10 px in radius that has moved

@@ -62,10 +62,17 @@ public:
   static constexpr int kMaxGrid = 15;
   /// Grid points per axis at most when no motion is known and the window reaches as far as ImageTrack::reach.
   static constexpr int kMaxWideGrid = 41;
+  /// A place within the object's apparent radius of where its motion takes it, scoring within this (mean cue
+  /// similarity) of the best in the window, is taken rather than the best: a blurred object passing a sharp
+  /// look-alike is followed.
+  static constexpr double kTieMargin = 0.1;
 
 private:
   /// Score `hyp_` and return the index of the best valid hypothesis (-1: none).
   int best(const HypothesisScorer& score, const PairScorer& pair = PairScorer());
+  /// After best() gave `b`: the point nearest (pu, pv), within `rp` px of it, among those whose similarity is
+  /// within kTieMargin of b's, moved to the best within rp + `step` of it; `b` when there is none.
+  int preferPredicted(int b, double pu, double pv, double rp, double step) const;
 
   ImageHypotheses hyp_, left_hyp_;
   Eigen::VectorXd ll_, sim_;
