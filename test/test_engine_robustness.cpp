@@ -1586,7 +1586,7 @@ TEST(EngineAdaptation, ATurningBoxIsKeptPastItsNextFaceAndFoundAgainByItsFirst)
   // within 15 frames of frame 210. Over several seeds: how far a turning face is followed is a draw (frame 60 to
   // 239), and one seed's draw says little.
   std::vector<int> kepts, refounds;
-  for (unsigned long seed = 1; seed <= 5; ++seed)
+  for (unsigned long seed = 1; seed <= 7; ++seed)
   {
     int kept = 0, refound = 0, slips = 0, kept_fixed = 0, refound_fixed = 0, slips_fixed = 0;
     trackTurningBox(0.1, seed, kept, refound, slips);
