@@ -1019,6 +1019,32 @@ TEST(TemplateMatch, ConvertsOnlyTheRowsItsWindowsReadAndScoresAsOnTheWholeImage)
   }
 }
 
+TEST(TemplateMatch, TheMapsCorrelationIsOpenCVsNormalisedCorrelationCoefficient)
+{
+  // The map's correlation is computed with OpenCV's filters (faster than cv::matchTemplate for its small templates):
+  // it must give what matchTemplate does, on texture, on flat patches, and for templates of the map's sizes.
+  using namespace stereo_pf;
+  cv::Mat grey(150, 200, CV_8UC1);
+  cv::randu(grey, 0, 256);
+  cv::GaussianBlur(grey, grey, cv::Size(5, 5), 1.5);
+  grey(cv::Rect(20, 30, 40, 30)).setTo(90);  // no contrast: both give 0 inside
+  cv::Mat image;
+  grey.convertTo(image, CV_32F);
+  for (int side : { 5, 7, 9 })
+  {
+    const cv::Mat templ = image(cv::Rect(120, 70, side, side + 2)).clone();
+    cv::Mat ours, opencv;
+    normalisedCorrelation(image, templ, ours);
+    cv::matchTemplate(image, templ, opencv, cv::TM_CCOEFF_NORMED);
+    ASSERT_EQ(ours.size(), opencv.size()) << side;
+    double worst = 0.0;
+    cv::minMaxLoc(cv::abs(ours - opencv), nullptr, &worst);
+    EXPECT_LT(worst, 1e-3) << "template " << side;
+    EXPECT_NEAR(ours.at<float>(70, 120), 1.0f, 1e-4) << "the template's own place";
+    EXPECT_EQ(ours.at<float>(35, 25), 0.0f) << "a window without contrast";
+  }
+}
+
 TEST(TemplateMatch, TwoTemplatesInOneTrackerHaveTargetMapsOfTheirOwn)
 {
   // The recovery search's maps come through the frame's cache. Two templates (two TemplateMatch cues in one

@@ -23,6 +23,36 @@ const char* const kType = "stereo_pf/TemplateMatch";
 constexpr int kMapSamples = 7;  // samples per side of the template in targetMap()
 }  // namespace
 
+// TM_CCOEFF_NORMED from OpenCV's filters (see the header): cv::matchTemplate correlates through the DFT whatever
+// the template's size, and for the 5-9 samples a side of the map's template it took three times as long (a
+// 400 x 300 image, 7 x 7: 10 ms against 3.4; at 800 x 600 and an object of 7 px radius the map took 20 ms of every
+// frame the recovery search ran).
+void normalisedCorrelation(const cv::Mat& image, const cv::Mat& templ, cv::Mat& result)
+{
+  const cv::Size k = templ.size();
+  const double n = k.area();
+  const cv::Mat zero_mean = templ - cv::mean(templ)[0];
+  const double t_norm = cv::norm(zero_mean);
+  cv::Mat products, sums, squares;
+  const cv::Point corner(0, 0);  // each output pixel is the window starting there, as matchTemplate's
+  cv::filter2D(image, products, CV_32F, zero_mean, corner, 0.0, cv::BORDER_REPLICATE);
+  cv::boxFilter(image, sums, CV_64F, k, corner, false, cv::BORDER_REPLICATE);
+  cv::sqrBoxFilter(image, squares, CV_64F, k, corner, false, cv::BORDER_REPLICATE);
+  result.create(image.rows - k.height + 1, image.cols - k.width + 1, CV_32F);
+  for (int y = 0; y < result.rows; ++y)
+  {
+    const float* a = products.ptr<float>(y);
+    const double* s = sums.ptr<double>(y);
+    const double* q = squares.ptr<double>(y);
+    float* r = result.ptr<float>(y);
+    for (int x = 0; x < result.cols; ++x)
+    {
+      const double variation = q[x] - s[x] * s[x] / n;  // n times the window's variance
+      r[x] = variation > 1e-6 * n && t_norm > 0.0 ? static_cast<float>(a[x] / (t_norm * std::sqrt(variation))) : 0.0f;
+    }
+  }
+}
+
 void TemplateMatch::onInitialize()
 {
   size_ = params().getInt("size", size_, 5, 41, "template samples per side");
@@ -335,7 +365,7 @@ bool TemplateMatch::targetMap(FeatureCache& cache, View view, cv::Mat& map)
     }
     cv::resize(templ, t, cv::Size(tw, th), 0, 0, cv::INTER_AREA);
     small.convertTo(small, CV_32F);
-    cv::matchTemplate(small, t, result, cv::TM_CCOEFF_NORMED);
+    normalisedCorrelation(small, t, result);
     // At the shrunk image's resolution (the engine resizes maps to its proposal grid).
     cv::Mat full(small.size(), CV_32F, cv::Scalar(0));
     result.copyTo(full(cv::Rect(tw / 2, th / 2, result.cols, result.rows)));

@@ -12,6 +12,12 @@
 
 namespace stereo_pf
 {
+/// The normalised correlation coefficient of `templ` at every place of `image` (both CV_32FC1, the template no
+/// larger than the image) where it fits whole: what cv::matchTemplate gives with TM_CCOEFF_NORMED (to 1e-4),
+/// `result` (image size - template size + 1, CV_32F) at each window's top-left corner. Windows without contrast, and
+/// a template without, give 0. Computed with OpenCV's filters, faster for small templates (targetMap()).
+void normalisedCorrelation(const cv::Mat& image, const cv::Mat& templ, cv::Mat& result);
+
 /// Grey-level template likelihood: does the hypothesis's window look like the object the user boxed?
 ///
 /// Why: a colour histogram tells a saturated object from its surroundings, but on mono8/mono16 images, and for
@@ -51,8 +57,9 @@ public:
   /// Back to the target learned from the box (the track was lost).
   void forgetAdaptation() override;
   /// The template's correlation with the whole image at the learned box size (the engine's proposals while
-  /// searching or lost): the image shrunk to at most 200 px wide, cv::matchTemplate (normalised correlation
-  /// coefficient), negative values 0, scaled back to the image.
+  /// searching or lost): the image shrunk to at most 200 px wide (less shrunk for a small box: the template keeps
+  /// at least 5 samples a side), the normalised correlation coefficient (cv::matchTemplate's TM_CCOEFF_NORMED,
+  /// computed with OpenCV's filters), negative values 0, at the shrunk image's resolution.
   bool targetMap(FeatureCache& cache, View view, cv::Mat& map) override;
   /// Write a map named name() with the size, aspect, the box's half-size and the learned template.
   void saveTarget(cv::FileStorage& fs) const override;
