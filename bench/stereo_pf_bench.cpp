@@ -385,6 +385,47 @@ BENCHMARK_CAPTURE(BM_Evaluate, TextureEdge, textureCue, kCheckered)->Apply(parti
 BENCHMARK_CAPTURE(BM_Evaluate, ShapeCircle, shapeCue, kCheckered)->Apply(particleCounts);
 
 // ---------------------------------------------------------------------------------------------------
+// Target maps (the recovery search's proposals, on every recovery_period-th frame of a track, and every frame
+// while searching): both views' maps of one frame, from a fresh cache, so the grey image or bins they read are
+// made too. The cue learns from a box of half-size `range(0)` px about the ball's centre: the scene's ball (~17
+// px) and a small object's (6 px), whose template map is matched on a less shrunk image.
+
+void BM_TargetMap(benchmark::State& state, std::shared_ptr<ObservationModel> (*make_cue)())
+{
+  const int half = static_cast<int>(state.range(0));
+  RenderedScene& s = scene(kUncluttered);
+  const StereoFrame frame = s.frame(kStageFrame);
+  FeatureCache cache;
+  cache.reset(frame);
+  const std::shared_ptr<ObservationModel> cue = make_cue();
+  const cv::Rect ball = s.targetRoi(kStageFrame);
+  const cv::Point centre(ball.x + ball.width / 2, ball.y + ball.height / 2);
+  std::string error;
+  if (!cue->learnTarget(cache, View::Left, cv::Rect(centre.x - half, centre.y - half, 2 * half, 2 * half), error))
+  {
+    state.SkipWithError(error.c_str());
+    return;
+  }
+  cv::Mat map;
+  for (auto _ : state)
+  {
+    cache.reset(frame);
+    for (const View v : kViews)
+    {
+      if (!cue->targetMap(cache, v, map))
+      {
+        state.SkipWithError("no target map");
+        return;
+      }
+      benchmark::DoNotOptimize(map.data);
+    }
+  }
+  state.counters["map_cols"] = map.cols;
+}
+BENCHMARK_CAPTURE(BM_TargetMap, ColourHSI, colourCue)->Arg(17)->Arg(6)->Unit(benchmark::kMicrosecond);
+BENCHMARK_CAPTURE(BM_TargetMap, TemplateMatch, templateCue)->Arg(17)->Arg(6)->Unit(benchmark::kMicrosecond);
+
+// ---------------------------------------------------------------------------------------------------
 // Stereo-constraints coupling (eq. 5.15) between the two SC sets with the model's default parameters
 // (items = 2 N particles, both factors).
 
