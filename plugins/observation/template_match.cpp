@@ -25,8 +25,8 @@ constexpr int kMapSamples = 7;  // samples per side of the template in targetMap
 
 // TM_CCOEFF_NORMED from OpenCV's filters (see the header): cv::matchTemplate correlates through the DFT whatever
 // the template's size, and for the 5-9 samples a side of the map's template it took three times as long (a
-// 400 x 300 image, 7 x 7: 10 ms against 3.4; at 800 x 600 and an object of 7 px radius the map took 20 ms of every
-// frame the recovery search ran).
+// 400 x 300 image, 7 x 7: 10 ms against 3.4; at 800 x 600 and a ball of 5 px radius the map took about 20 ms of
+// every frame the recovery search ran).
 void normalisedCorrelation(const cv::Mat& image, const cv::Mat& templ, cv::Mat& result)
 {
   const cv::Size k = templ.size();
