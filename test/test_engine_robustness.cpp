@@ -779,13 +779,15 @@ TEST(EngineRecovery, AJumpAfterUnseenFramesArrivesFromWhereTheObjectWasLastSeen)
 
 namespace
 {
-/// The pendulum tracked for 10 frames, then held still (frame 9 for 5 more frames), then blank frames until the track
+/// The pendulum tracked for 10 frames, then held still (frame 9 for 12 more frames: 0.4 s, longer than the sightings
+/// the track's speed is fitted to, FilterEngine::recordSighting), then blank frames until the track
 /// is lost, then `shown` (a frame of the scene) again and again, the stamps going on at the scene's frame period:
 /// the frames until the ball is tracked again (-1: not within 20); `distance` gets how far it is from where the track
 /// last saw it, `error` how far the first estimate back is from the ball (-1: not found). `replayed`: the stamps start
-/// again from the scene's first when the ball is shown (a bag played again).
+/// again from the scene's first when the ball is shown (a bag played again). `jitter` (a frame of the scene): the
+/// "still" frames alternate between frame 9 and it, the track's estimate jumping to and fro every frame.
 int framesToFindTheBallAgain(const EngineConfig& config, int shown, double& distance, double& error,
-                             bool replayed = false)
+                             bool replayed = false, int jitter = -1)
 {
   Scene scene("pendulum_uncluttered.yaml");
   FrameResult r;
@@ -793,9 +795,9 @@ int framesToFindTheBallAgain(const EngineConfig& config, int shown, double& dist
   FilterEngine& engine = *tracking;
   const double period = scene.renderer().stamp(1) - scene.renderer().stamp(0);
   double stamp = scene.renderer().stamp(9);
-  for (int k = 0; k < 5; ++k)
+  for (int k = 0; k < 12; ++k)
   {
-    StereoFrame still = scene.frame(9);
+    StereoFrame still = scene.frame(jitter >= 0 && k % 2 == 0 ? jitter : 9);
     still.stamp = stamp += period;
     r = engine.step(still);
   }
@@ -881,6 +883,39 @@ TEST(EngineRecovery, ALostTrackIsFoundAgainOnlyWithinReachOfWhereItWasLastSeen)
     std::sort(errors->begin(), errors->end());
     EXPECT_GE(errors->front(), 0.0) << "not found at some seed";
     EXPECT_LT((*errors)[errors->size() / 2], 0.035) << "the median first estimate back is off the ball";
+  }
+}
+
+TEST(EngineRecovery, TheReachFollowsTheSpeedOverTheLastSightingsNotTheLastFrame)
+{
+  // The reach grows with the object's speed where it was last seen. The still ball's estimate is made to jump to and
+  // fro between frame 9's place and frame 10's (one frame's swing) on every frame before it is hidden: read off the
+  // last frame, the speed would be that jump over a frame period, and the far place of the swing would come within
+  // reach. Fitted to the last sightings, the speed stays near zero and the far place out of reach, as for the still
+  // ball (ALostTrackIsFoundAgainOnlyWithinReachOfWhereItWasLastSeen).
+  Scene scene("pendulum_uncluttered.yaml");
+  int far = 10;
+  for (int k = 10; k < 90; ++k)
+    if ((scene.renderer().targetPosition(k) - scene.renderer().targetPosition(9)).norm() >
+        (scene.renderer().targetPosition(far) - scene.renderer().targetPosition(9)).norm())
+      far = k;
+  const double period = scene.renderer().stamp(1) - scene.renderer().stamp(0);
+  const double jump = (scene.renderer().targetPosition(10) - scene.renderer().targetPosition(9)).norm();
+  for (unsigned long seed = 1; seed <= 3; ++seed)
+  {
+    SCOPED_TRACE("engine seed " + std::to_string(seed));
+    EngineConfig config;
+    config.seed = seed;
+    config.reacquire_min_speed = 0.2;
+    double distance = 0.0, error = 0.0;
+    const int found = framesToFindTheBallAgain(config, far, distance, error, false, 10);
+    // Out of reach at the floor; within it at the speed of one frame's jump (the way the last frame would have it).
+    ASSERT_GT(distance, 2.0 * config.reacquire_min_speed * 35 * period) << "the far place must stay out of reach";
+    ASSERT_LT(distance, (2.0 * jump / period + config.reacquire_min_speed) * 15 * period)
+        << "a speed read off the last frame would not reach the far place: the test shows nothing";
+    std::printf("seed %lu: estimate jumping %.1f cm a frame (%.2f m/s), ball %.2f m away: found after %d frames\n",
+                seed, 100.0 * jump, jump / period, distance, found);
+    EXPECT_EQ(found, -1) << "found " << distance << " m away within " << found << " frames";
   }
 }
 

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <array>
+#include <deque>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -86,8 +87,8 @@ struct EngineConfig
   double reacquire_margin = 0.05;
   /// Once the target has been tracked, finding it again also needs the estimate within reach of where the track
   /// last saw the object: (reacquire_speed_factor times the speed it had there, plus reacquire_min_speed) times the
-  /// time since. The speed is the state's velocity, or for a state without one the way from the track's previous
-  /// estimate. An object hidden by an occluder comes out about where its motion took it; a look-alike that took
+  /// time since. The speed is fitted to the track's seen estimates of the last 0.3 s (one alone: the state's
+  /// velocity). An object hidden by an occluder comes out about where its motion took it; a look-alike that took
   /// the lost track is mostly elsewhere. 0 (either): no bound.
   double reacquire_speed_factor = 2.0;
   double reacquire_min_speed = 1.0;  ///< m/s
@@ -382,6 +383,8 @@ private:
   /// After a step: keep the tracking estimate's image position, disparity and apparent size for proposeLocally(),
   /// when the evidence saw the object (`vouched`); a frame that saw nothing keeps the last place the evidence saw.
   void rememberTrack(bool vouched, double stamp);
+  /// A Seen estimate: kept in sightings_, seen_speed_ fitted to them.
+  void recordSighting(const StateEstimate& estimate, double stamp);
   /// Draw every set around the acquired point (acquisition_): its left pixel jittered by a fraction of the apparent
   /// radius, its disparity by half a pixel, through StateModel::seedFromStereo (rows it rejects keep their
   /// prior draw).
@@ -485,7 +488,11 @@ private:
   /// bounds where the object can be found again (withinReacquireReach). Invalid before the first track of a target.
   StateEstimate seen_estimate_;
   double seen_stamp_ = 0.0;
-  double seen_speed_ = 0.0;  ///< m/s, the object's speed there
+  double seen_speed_ = 0.0;  ///< m/s, the object's speed there (recordSighting)
+  /// The Seen estimates of the last kSpeedWindow seconds (stamp, position), oldest first: the speed is fitted to
+  /// them, not taken from one frame (recordSighting).
+  std::deque<std::pair<double, Eigen::Vector3d>> sightings_;
+  static constexpr double kSpeedWindow = 0.3;
   /// The last two tracking estimates the evidence saw (vouched): their left pixels, disparities and stamps (newest
   /// first) and how many are known: the local search's image motion.
   Pixel track_left_[2];
