@@ -826,6 +826,17 @@ int framesToFindTheBallAgain(const EngineConfig& config, int shown, double& dist
   }
   return -1;
 }
+
+/// The frame among the pendulum's frames 10-89 whose ball lies farthest from where it is in frame 9.
+int farthestFromFrameNine(Scene& scene)
+{
+  int far = 10;
+  for (int k = 10; k < 90; ++k)
+    if ((scene.renderer().targetPosition(k) - scene.renderer().targetPosition(9)).norm() >
+        (scene.renderer().targetPosition(far) - scene.renderer().targetPosition(9)).norm())
+      far = k;
+  return far;
+}
 }  // namespace
 
 TEST(EngineRecovery, ALostTrackIsFoundAgainOnlyWithinReachOfWhereItWasLastSeen)
@@ -838,11 +849,7 @@ TEST(EngineRecovery, ALostTrackIsFoundAgainOnlyWithinReachOfWhereItWasLastSeen)
   // adapting), so each case runs at seven engine seeds, and their median must be on the ball: within its radius
   // (3.5 cm) of its centre.
   Scene scene("pendulum_uncluttered.yaml");
-  int far = 10;
-  for (int k = 10; k < 90; ++k)
-    if ((scene.renderer().targetPosition(k) - scene.renderer().targetPosition(9)).norm() >
-        (scene.renderer().targetPosition(far) - scene.renderer().targetPosition(9)).norm())
-      far = k;
+  const int far = farthestFromFrameNine(scene);
   const double period = scene.renderer().stamp(1) - scene.renderer().stamp(0);
   std::vector<double> free_errors, near_errors, replayed_errors;
   for (unsigned long seed = 1; seed <= 7; ++seed)
@@ -894,11 +901,7 @@ TEST(EngineRecovery, TheReachFollowsTheSpeedOverTheLastSightingsNotTheLastFrame)
   // reach. Fitted to the last sightings, the speed stays near zero and the far place out of reach, as for the still
   // ball (ALostTrackIsFoundAgainOnlyWithinReachOfWhereItWasLastSeen).
   Scene scene("pendulum_uncluttered.yaml");
-  int far = 10;
-  for (int k = 10; k < 90; ++k)
-    if ((scene.renderer().targetPosition(k) - scene.renderer().targetPosition(9)).norm() >
-        (scene.renderer().targetPosition(far) - scene.renderer().targetPosition(9)).norm())
-      far = k;
+  const int far = farthestFromFrameNine(scene);
   const double period = scene.renderer().stamp(1) - scene.renderer().stamp(0);
   const double jump = (scene.renderer().targetPosition(10) - scene.renderer().targetPosition(9)).norm();
   for (unsigned long seed = 1; seed <= 3; ++seed)
