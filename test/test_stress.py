@@ -322,6 +322,21 @@ class Smoke(unittest.TestCase):
         self.assertIn("and seeds 4, 7;", md)
         self.assertRegex(md, r"\| ours \(2 seeds\) \| 2 \| \d+ \(")
 
+    def test_without_csrt_only_ours_runs_and_the_report_says_so(self):
+        out = os.path.join(self.out, "no_csrt")
+        p = subprocess.run([os.path.join(ROOT, "scripts", "stress"), "--n", "1", "--frames", "12", "--no-build",
+                            "--devel", OPTIONS.devel, "--no-csrt", "--tracker-seeds", "2", "--out", out, "--docs", out],
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        self.assertEqual(p.returncode, 0, p.stdout)
+        with open(os.path.join(out, "stress.csv")) as f:
+            rows = list(csv.DictReader(f))
+        self.assertEqual([(r["tracker"], r["seed"]) for r in rows], [("ours", "2")])
+        self.assertFalse([n for n in os.listdir(os.path.join(out, "runs")) if "csrt" in n])
+        with open(os.path.join(out, "stress.md")) as f:
+            md = f.read()
+        self.assertIn("CSRT was not run (`--no-csrt`)", md)
+        self.assertIn("| not run |", md)
+
     def test_kept_bags_are_tracked_again_while_their_scene_is_the_same(self):
         out = os.path.join(self.out, "kept")
 
