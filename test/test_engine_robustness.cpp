@@ -1266,7 +1266,9 @@ TEST(EngineRecovery, FramesThatShowNothingLeaveTheTrackWhereItWas)
         r = engine.step(blank);
         EXPECT_EQ(r.support, Support::LowEvidence);
         EXPECT_GT(r.ess, 0.2 * engine.config().particles) << "a frame showing nothing picked particles";
-        if (r.published())
+        // Not given (a frame of low evidence: published() false), but kept where it was.
+        EXPECT_FALSE(r.published()) << "an estimate given on a frame showing nothing";
+        if (r.estimate.valid)
         {
           EXPECT_LT((r.estimate.position - seen).norm(), 0.5) << "the estimate moved on a frame showing nothing";
         }
@@ -1398,6 +1400,43 @@ TEST(EngineTrackState, UnsureFramesNeitherCountNorBreakARunOfUnseenOnes)
   const std::vector<TrackState> interrupted = statesUnder(interrupted_script);
   for (size_t k = 9; k < interrupted.size(); ++k)
     EXPECT_EQ(interrupted[k], TrackState::Tracking) << "frame " << k;
+}
+
+TEST(EngineTrackState, AFrameThatDoesNotSeeTheObjectKeepsTheTrackButGivesNoEstimate)
+{
+  // Seen (0.9), then lost_frames - 1 frames of low evidence (0.3), one unsure (0.55), and seen again. The track is
+  // kept over the low frames (one bad frame must not lose it), but what it holds there is the prediction, not a
+  // sighting: no estimate is given (published() false), though the engine still has one. The unsure frame and the
+  // seen ones are given.
+  const EngineConfig defaults;
+  const int low = defaults.lost_frames - 1;
+  ASSERT_GE(low, 1);
+  ASSERT_LT(0.3, defaults.lost_similarity);
+  ASSERT_TRUE(0.55 >= defaults.lost_similarity && 0.55 < defaults.found_similarity);
+  std::vector<double> script(3, 0.9);
+  script.insert(script.end(), low, 0.3);
+  script.push_back(0.55);
+  script.insert(script.end(), 3, 0.9);
+  const std::vector<FrameResult> r = resultsUnder(script);
+  for (int k = 10; k < 13; ++k)
+  {
+    ASSERT_EQ(r[k].support, Support::Seen) << "frame " << k;
+    EXPECT_TRUE(r[k].published()) << "frame " << k;
+  }
+  for (int k = 13; k < 13 + low; ++k)
+  {
+    EXPECT_EQ(r[k].state, TrackState::Tracking) << "frame " << k;
+    EXPECT_EQ(r[k].support, Support::LowEvidence) << "frame " << k;
+    EXPECT_TRUE(r[k].estimate.valid) << "frame " << k;
+    EXPECT_FALSE(r[k].published()) << "frame " << k << ": an estimate given on a frame that did not see the object";
+  }
+  EXPECT_EQ(r[13 + low].support, Support::Unsure);
+  EXPECT_TRUE(r[13 + low].published()) << "the unsure frame";
+  for (int k = 14 + low; k < static_cast<int>(r.size()); ++k)
+  {
+    EXPECT_EQ(r[k].state, TrackState::Tracking) << "frame " << k;
+    EXPECT_TRUE(r[k].published()) << "frame " << k;
+  }
 }
 
 TEST(EngineTrackState, AnObjectOneCameraStillSeesIsUnsureNotUnseen)

@@ -245,7 +245,7 @@ void FramePipeline::publish(const std_msgs::Header& header, const StereoFrame& f
     pose_pub_.publish(boost::make_shared<geometry_msgs::PoseWithCovarianceStamped>(toPose(header, held)));
   }
 
-  trail_.update(header.stamp.toSec(), e.position, tracking);  // restarts while not tracking
+  trail_.update(header.stamp.toSec(), e.position, tracking);  // restarts where no estimate is given
 
   const EngineConfig& config = host_.engine().config();
   const std::string message = describeTrack(result, config, host_.engine().viewingVolume());

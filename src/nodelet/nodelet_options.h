@@ -26,7 +26,7 @@ struct NodeletOptions
   std::string target_file;           ///< start-up target; default path of save/load_target
   std::vector<int> target_roi;       ///< start-up target region of the first frame (empty: none)
   double set_target_timeout = 2.0;   ///< how long set_target waits for a frame, seconds
-  bool publish_when_lost = false;    ///< repeat the last tracked estimate while not tracking (marked)
+  bool publish_when_lost = false;    ///< repeat the last given estimate whenever none is given (marked)
   std::string roi_topic;             ///< ~target_roi_topic (empty: none)
   MarkerOptions markers;
   double diagnostic_period = 1.0;    ///< s
