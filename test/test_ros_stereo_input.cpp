@@ -310,6 +310,15 @@ TEST(TrackerOutputs, TheStatusMessageSaysWhatToDo)
   r.support = Support::Seen;
   r.state_frames = 12;
   EXPECT_NE(describeTrack(r, EngineConfig(), volume).find("tracking for 12 frames"), std::string::npos);
+  // A frame of the track that does not see the object says that it gives no estimate (FrameResult::published()).
+  r.estimate.valid = true;
+  ASSERT_TRUE(r.published());
+  r.support = Support::LowEvidence;
+  r.evidence = 0.2;
+  ASSERT_FALSE(r.published());
+  const std::string unseen = describeTrack(r, EngineConfig(), volume);
+  EXPECT_NE(unseen.find("tracking: the target is not seen"), std::string::npos) << unseen;
+  EXPECT_NE(unseen.find("no estimate this frame"), std::string::npos) << unseen;
 }
 
 TEST(RosParameters, FlattensLikeTheYamlLoader)

@@ -279,13 +279,16 @@ std::string describeTrack(const FrameResult& r, const EngineConfig& c, const Vie
       std::snprintf(buf, sizeof(buf),
                     "%s: the target's appearance is found beside it too (evidence %.2f, background %.2f, needed "
                     "margin %.2f): if this lasts, the learned target is mostly background; learn it again with "
-                    "~set_target on a frame where the box holds the object only",
-                    state, r.evidence, r.background, c.background_margin);
+                    "~set_target on a frame where the box holds the object only%s",
+                    state, r.evidence, r.background, c.background_margin,
+                    r.state == TrackState::Tracking ? " (no estimate this frame)" : "");
       break;
     case Support::LowEvidence:
       std::snprintf(buf, sizeof(buf), "%s: the target is not seen (evidence %.2f < lost_similarity %.2f)%s", state,
                     r.evidence, c.lost_similarity,
-                    r.state == TrackState::Tracking ? "" : "; searching (occluded, out of view, or the lighting changed?)");
+                    r.state == TrackState::Tracking ?
+                        "; no estimate this frame (the track is kept over up to engine/lost_frames such frames)" :
+                        "; searching (occluded, out of view, or the lighting changed?)");
       break;
     case Support::Seen:
     case Support::Unsure:
