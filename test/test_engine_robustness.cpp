@@ -1404,17 +1404,20 @@ TEST(EngineTrackState, UnsureFramesNeitherCountNorBreakARunOfUnseenOnes)
 
 TEST(EngineTrackState, AFrameThatDoesNotSeeTheObjectKeepsTheTrackButGivesNoEstimate)
 {
-  // Seen (0.9), then lost_frames - 1 frames of low evidence (0.3), one unsure (0.55), and seen again. The track is
-  // kept over the low frames (one bad frame must not lose it), but what it holds there is the prediction, not a
-  // sighting: no estimate is given (published() false), though the engine still has one. The unsure frame and the
-  // seen ones are given.
+  // Seen (0.9), then lost_frames - 2 frames of low evidence (0.2), one that still sees the object faintly (0.35, at
+  // least estimate_similarity), one unsure (0.55), and seen again. The track is kept over the low frames (one bad frame
+  // must not lose it), but what it holds on the first ones is the prediction, not a sighting: no estimate is given
+  // (published() false), though the engine still has one. The faint frame, the unsure frame and the seen ones are
+  // given. With estimate_similarity 0 every one of them is.
   const EngineConfig defaults;
-  const int low = defaults.lost_frames - 1;
+  const int low = defaults.lost_frames - 2;
   ASSERT_GE(low, 1);
-  ASSERT_LT(0.3, defaults.lost_similarity);
+  ASSERT_LT(0.2, defaults.estimate_similarity);
+  ASSERT_TRUE(0.35 >= defaults.estimate_similarity && 0.35 < defaults.lost_similarity);
   ASSERT_TRUE(0.55 >= defaults.lost_similarity && 0.55 < defaults.found_similarity);
   std::vector<double> script(3, 0.9);
-  script.insert(script.end(), low, 0.3);
+  script.insert(script.end(), low, 0.2);
+  script.push_back(0.35);
   script.push_back(0.55);
   script.insert(script.end(), 3, 0.9);
   const std::vector<FrameResult> r = resultsUnder(script);
@@ -1428,15 +1431,26 @@ TEST(EngineTrackState, AFrameThatDoesNotSeeTheObjectKeepsTheTrackButGivesNoEstim
     EXPECT_EQ(r[k].state, TrackState::Tracking) << "frame " << k;
     EXPECT_EQ(r[k].support, Support::LowEvidence) << "frame " << k;
     EXPECT_TRUE(r[k].estimate.valid) << "frame " << k;
+    EXPECT_FALSE(r[k].faint) << "frame " << k;
     EXPECT_FALSE(r[k].published()) << "frame " << k << ": an estimate given on a frame that did not see the object";
   }
-  EXPECT_EQ(r[13 + low].support, Support::Unsure);
-  EXPECT_TRUE(r[13 + low].published()) << "the unsure frame";
-  for (int k = 14 + low; k < static_cast<int>(r.size()); ++k)
+  const FrameResult& faint = r[13 + low];
+  EXPECT_EQ(faint.state, TrackState::Tracking);
+  EXPECT_EQ(faint.support, Support::LowEvidence);
+  EXPECT_TRUE(faint.faint);
+  EXPECT_TRUE(faint.published()) << "the frame that sees the object faintly";
+  EXPECT_EQ(r[14 + low].support, Support::Unsure);
+  EXPECT_TRUE(r[14 + low].published()) << "the unsure frame";
+  for (int k = 15 + low; k < static_cast<int>(r.size()); ++k)
   {
     EXPECT_EQ(r[k].state, TrackState::Tracking) << "frame " << k;
     EXPECT_TRUE(r[k].published()) << "frame " << k;
   }
+  EngineConfig every;
+  every.estimate_similarity = 0.0;
+  const std::vector<FrameResult> all = resultsUnder(script, every);
+  for (int k = 13; k < 14 + low; ++k)
+    EXPECT_TRUE(all[k].published()) << "frame " << k << " with estimate_similarity 0";
 }
 
 TEST(EngineTrackState, AnObjectOneCameraStillSeesIsUnsureNotUnseen)

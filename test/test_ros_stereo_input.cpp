@@ -319,6 +319,13 @@ TEST(TrackerOutputs, TheStatusMessageSaysWhatToDo)
   const std::string unseen = describeTrack(r, EngineConfig(), volume);
   EXPECT_NE(unseen.find("tracking: the target is not seen"), std::string::npos) << unseen;
   EXPECT_NE(unseen.find("no estimate this frame"), std::string::npos) << unseen;
+  // ... unless it still sees the object faintly (engine/estimate_similarity): then the estimate is given.
+  r.evidence = 0.35;
+  r.faint = true;
+  ASSERT_TRUE(r.published());
+  const std::string faint = describeTrack(r, EngineConfig(), volume);
+  EXPECT_NE(faint.find("seen faintly"), std::string::npos) << faint;
+  EXPECT_EQ(faint.find("no estimate this frame"), std::string::npos) << faint;
 }
 
 TEST(RosParameters, FlattensLikeTheYamlLoader)

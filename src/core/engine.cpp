@@ -153,6 +153,10 @@ const std::vector<EngineField>& engineFields()
                                       "best mean cue similarity at or above this counts as 'object seen'"),
     doubleField<&C::lost_similarity>("lost_similarity", 0.0, 1.0, true,
                                      "below this counts as 'object not seen' (kept <= found_similarity)"),
+    doubleField<&C::estimate_similarity>("estimate_similarity", 0.0, 1.0, true,
+                                         "a frame of the track of low evidence (below lost_similarity) still gives its "
+                                         "estimate when the evidence reaches this (seen faintly); below, the estimate "
+                                         "is the prediction and is not given (0: every such frame gives it)"),
     intField<&C::found_frames>("found_frames", 1, 1000, false,
                                "seen frames, no unseen one between (unsure ones neither count nor break the run), to "
                                "switch to tracking"),
@@ -1718,6 +1722,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     result.estimate.valid = false;
   }
   result.support = support;
+  result.faint = support == Support::LowEvidence && result.evidence >= config_.estimate_similarity;
   const TrackState before = state_;
   updateTrackState(support, result);
   // Found again far from where the object was lost: watch there (return_watch); moved back there when it returns.

@@ -286,9 +286,11 @@ std::string describeTrack(const FrameResult& r, const EngineConfig& c, const Vie
     case Support::LowEvidence:
       std::snprintf(buf, sizeof(buf), "%s: the target is not seen (evidence %.2f < lost_similarity %.2f)%s", state,
                     r.evidence, c.lost_similarity,
-                    r.state == TrackState::Tracking ?
-                        "; no estimate this frame (the track is kept over up to engine/lost_frames such frames)" :
-                        "; searching (occluded, out of view, or the lighting changed?)");
+                    r.state != TrackState::Tracking ?
+                        "; searching (occluded, out of view, or the lighting changed?)" :
+                        r.faint ? "; seen faintly (at least engine/estimate_similarity): the estimate is given, and the "
+                                  "track is kept over up to engine/lost_frames such frames" :
+                                  "; no estimate this frame (the track is kept over up to engine/lost_frames such frames)");
       break;
     case Support::Seen:
     case Support::Unsure:
