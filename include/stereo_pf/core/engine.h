@@ -18,6 +18,7 @@
 #include "stereo_pf/core/feature_cache.h"
 #include "stereo_pf/core/local_search.h"
 #include "stereo_pf/core/map_proposals.h"
+#include "stereo_pf/core/match_depth_filter.h"
 #include "stereo_pf/core/parameters.h"
 #include "stereo_pf/core/random.h"
 #include "stereo_pf/core/stereo_frame.h"
@@ -144,6 +145,10 @@ struct EngineConfig
   /// fast or approaching object be followed), with the same prior weight and arrival velocity as the recovery
   /// search's. 0: no local search.
   double local_fraction = 0.1;
+  /// m/s^2: the local search's pairs are proposed at the depth of its matches filtered over the track's frames
+  /// (MatchDepthFilter) with this acceleration noise along the depth, not at each frame's own match: a far
+  /// object's depth then averages over frames instead of taking each frame's disparity error. 0: each match as it is.
+  double local_depth_acceleration = 60.0;
   /// m/s: while no image motion of the track is known yet (its first frame after the box, or after it was found
   /// again), the local search reaches as far as this speed takes the object in the frame's interval: a fast
   /// object has moved out of a window of two radii by the first frame after the box. The wide window is searched
@@ -402,6 +407,9 @@ private:
   /// After a step: keep the tracking estimate's image position, disparity and apparent size for proposeLocally(),
   /// when the evidence saw the object (`vouched`); a frame that saw nothing keeps the last place the evidence saw.
   void rememberTrack(bool vouched, double stamp);
+  /// No track for proposeLocally() to follow (a fresh cloud, a jump, an invalid estimate): it and its depth filter
+  /// start again from the next vouched estimate.
+  void forgetTrack();
   /// A Seen estimate: kept in sightings_, seen_speed_ fitted to them.
   void recordSighting(const StateEstimate& estimate, double stamp);
   /// Draw every set around the acquired point (acquisition_): its left pixel jittered by a fraction of the apparent
@@ -518,6 +526,10 @@ private:
   double track_disparity_[2] = { 0.0, 0.0 };
   double track_stamp_[2] = { 0.0, 0.0 };
   int track_known_ = 0;
+  MatchDepthFilter match_depth_;  ///< the local search's matches' depth (local_depth_acceleration)
+  /// One local match's disparity error, px (what the search tells apart), and the least spread of its proposals.
+  static constexpr double kLocalDisparitySigma = 0.5;
+  static constexpr double kMinLocalDisparitySpread = 0.05;
   double track_radius_ = 0.0;  ///< the tracked hypotheses' median apparent radius in the left image, px
   LocalSearch local_search_;
   /// The return watch (return_watch): where and when the last track lost the object and its speed there (the
