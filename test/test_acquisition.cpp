@@ -558,6 +558,27 @@ TEST(LocalSearch, AnObjectThatReversedItsMotionIsFound)
   }
 }
 
+TEST(LocalSearch, AnObjectItsMotionTookOutOfTheViewIsNotLookedForBehindIt)
+{
+  // The object moved 40 px to the right, to 300 px, in an image 330 px wide: its motion takes it out of the view. A
+  // look-alike stands 40 px to its left, where the motion reversed would take it. In a wider image the search
+  // finds that place (a bounce); here the object has left the view, and the search proposes nothing.
+  using namespace stereo_pf;
+  const ImageTrack track = trackAt300(40.0);
+  LocalSearch search;
+  const HypothesisScorer score = [&](const ImageHypotheses& hyp, Eigen::VectorXd& ll, Eigen::VectorXd& sim) {
+    for (int i = 0; i < hyp.size(); ++i)
+    {
+      const double at = hyp.view == View::Left ? 260.0 : 220.0;
+      const double s = std::max(0.0, 1.0 - std::hypot(hyp.u[i] - at, hyp.v[i] - 200.0) / 10.0);
+      ll[i] += 10.0 * s;
+      sim[i] += s;
+    }
+  };
+  EXPECT_TRUE(search.search(track, 640, 480, score).found);
+  EXPECT_FALSE(search.search(track, 330, 480, score).found);
+}
+
 TEST(LocalSearch, AMovingObjectIsFollowedPastALookAlikeThatScoresBetter)
 {
   // The object moved 30 px to the right in the last frame and went on; a sharp look-alike 40 px below where it went

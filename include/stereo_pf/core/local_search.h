@@ -52,7 +52,8 @@ class LocalSearch
 {
 public:
   /// Search near `track` in images of `width` x `height` px, scoring with `score` (and the right image's
-  /// disparities also with `pair`, when given).
+  /// disparities also with `pair`, when given). Nothing is found when the track's motion takes its centre out of
+  /// the image (the object has left the view).
   LocalMatch search(const ImageTrack& track, int width, int height, const HypothesisScorer& score,
                     const PairScorer& pair = PairScorer());
 
