@@ -525,6 +525,21 @@ stereo_pf::ImageTrack trackAt300(double du)
   track.radius = 10.0;
   return track;
 }
+
+/// What a window of the object's size sees of an object at left (u, 200), disparity 40 px, 10 px in radius: the
+/// object within a radius of its centre, then nothing.
+stereo_pf::HypothesisScorer objectAt(double u)
+{
+  return [u](const stereo_pf::ImageHypotheses& hyp, Eigen::VectorXd& ll, Eigen::VectorXd& sim) {
+    for (int i = 0; i < hyp.size(); ++i)
+    {
+      const double at = hyp.view == stereo_pf::View::Left ? u : u - 40.0;
+      const double s = std::max(0.0, 1.0 - std::hypot(hyp.u[i] - at, hyp.v[i] - 200.0) / 10.0);
+      ll[i] += 10.0 * s;
+      sim[i] += s;
+    }
+  };
+}
 }  // namespace
 
 TEST(LocalSearch, AnObjectThatReversedItsMotionIsFound)
@@ -537,18 +552,7 @@ TEST(LocalSearch, AnObjectThatReversedItsMotionIsFound)
   LocalSearch search;
   for (const double u : { 260.0, 340.0, 360.0 })
   {
-    const HypothesisScorer score = [&](const ImageHypotheses& hyp, Eigen::VectorXd& ll, Eigen::VectorXd& sim) {
-      for (int i = 0; i < hyp.size(); ++i)
-      {
-        // What a window of the object's size sees: the object within a radius of its centre, then nothing.
-        const double at = hyp.view == View::Left ? u : u - 40.0;
-        const double d = std::hypot(hyp.u[i] - at, hyp.v[i] - 200.0);
-        const double s = std::max(0.0, 1.0 - d / 10.0);
-        ll[i] += 10.0 * s;
-        sim[i] += s;
-      }
-    };
-    const LocalMatch m = search.search(track, 640, 480, score);
+    const LocalMatch m = search.search(track, 640, 480, objectAt(u));
     ASSERT_TRUE(m.found) << "object at u = " << u;
     // To the fine grid's spacing (m.step, 3 px here), which the right image's match inherits.
     EXPECT_NEAR(m.left.u, u, m.step) << "object at u = " << u;
@@ -566,17 +570,8 @@ TEST(LocalSearch, AnObjectItsMotionTookOutOfTheViewIsNotLookedForBehindIt)
   using namespace stereo_pf;
   const ImageTrack track = trackAt300(40.0);
   LocalSearch search;
-  const HypothesisScorer score = [&](const ImageHypotheses& hyp, Eigen::VectorXd& ll, Eigen::VectorXd& sim) {
-    for (int i = 0; i < hyp.size(); ++i)
-    {
-      const double at = hyp.view == View::Left ? 260.0 : 220.0;
-      const double s = std::max(0.0, 1.0 - std::hypot(hyp.u[i] - at, hyp.v[i] - 200.0) / 10.0);
-      ll[i] += 10.0 * s;
-      sim[i] += s;
-    }
-  };
-  EXPECT_TRUE(search.search(track, 640, 480, score).found);
-  EXPECT_FALSE(search.search(track, 330, 480, score).found);
+  EXPECT_TRUE(search.search(track, 640, 480, objectAt(260.0)).found);
+  EXPECT_FALSE(search.search(track, 330, 480, objectAt(260.0)).found);
 }
 
 TEST(LocalSearch, AMovingObjectIsFollowedPastALookAlikeThatScoresBetter)
