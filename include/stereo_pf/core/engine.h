@@ -396,8 +396,10 @@ private:
   /// ... remember one seen at `position` (the entry whose reach holds it is renewed, else one is added) ...
   void rememberLookalike(const Eigen::Vector3d& position, double stamp);
   /// ... and while lost: set `s`'s particles whose left image lies within reach of one seen kLookalikeSightings times
-  /// weigh nothing and are no evidence (the best of them scoring as a track must renews it, where it is).
-  void excludeLookalikes(const StereoGeometry& geometry, int s, double cues, double stamp);
+  /// weigh nothing and are no evidence (the best of them scoring as a track must renews it, where it is); while
+  /// tracking, only the rows `only` marks (a recovery jump's).
+  void excludeLookalikes(const StereoGeometry& geometry, int s, double cues, double stamp,
+                         const std::vector<int>* only = nullptr);
   /// True when an enabled cue is not a refining one (refining cues then come second, after the others).
   bool anyNonRefiningCue() const;
   /// True when `m`'s similarity counts towards the evidence that the target is seen (among the cues that compare each
