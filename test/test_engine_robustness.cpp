@@ -1320,34 +1320,40 @@ TEST(EngineRecovery, ATrackLeftBehindIsLostNotKeptByTheJumpsItRefuses)
 namespace
 {
 /// The colour histogram whose similarity, once `script` is set, is script[k] at every particle of frame k (the
-/// background places beside the best particle score 0), so the engine's evidence follows the script.
+/// background places beside the best particle score `background` of their view), so the engine's evidence follows
+/// the script.
 class Scripted : public ColourHSI
 {
 public:
   std::vector<double> script;
   /// When set: the right view's similarity instead of script's (script is then the left view's).
   std::vector<double> right_script;
+  double background[2] = { 0.0, 0.0 };  ///< left, right
   int frame = 0;
   int particles = 0;
   void evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
                 Eigen::Ref<Eigen::VectorXd> similarity) override
   {
     ColourHSI::evaluate(cache, hyp, log_likelihood, similarity);
-    const std::vector<double>& s = hyp.view == View::Right && !right_script.empty() ? right_script : script;
+    const bool right = hyp.view == View::Right;
+    const std::vector<double>& s = right && !right_script.empty() ? right_script : script;
     if (frame >= 0 && frame < static_cast<int>(s.size()))
-      similarity.setConstant(hyp.size() == particles ? s[frame] : 0.0);
+      similarity.setConstant(hyp.size() == particles ? s[frame] : background[right ? 1 : 0]);
   }
 };
 
 /// Every frame's result on the pendulum whose evidence follows `script` from frame 10 on (in the left view only
 /// when `right_script` is given: the right view's follows that).
 std::vector<FrameResult> resultsUnder(const std::vector<double>& script, EngineConfig config = EngineConfig(),
-                                      const std::vector<double>& right_script = {})
+                                      const std::vector<double>& right_script = {}, double left_background = 0.0,
+                                      double right_background = 0.0)
 {
   Scene scene("pendulum_uncluttered.yaml");
   auto colour = cue<Scripted>("colour");
   config.local_fraction = 0.0;  // the local search scores batches of its own size
   colour->particles = config.particles;
+  colour->background[0] = left_background;
+  colour->background[1] = right_background;
   FilterEngine engine(position3D(), { colour }, config);
   std::string error;
   EXPECT_TRUE(engine.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
@@ -1484,6 +1490,26 @@ TEST(EngineTrackState, AnObjectOneCameraStillSeesIsUnsureNotUnseen)
   const std::vector<FrameResult> neither = resultsUnder(std::vector<double>(12, 0.5), defaults, right);
   EXPECT_EQ(neither[10].support, Support::LowEvidence);
   EXPECT_EQ(neither[10 + defaults.lost_frames - 1].state, TrackState::Lost) << "low frame " << defaults.lost_frames;
+}
+
+TEST(EngineTrackState, AnObjectOneCameraStillSeesIsJudgedAgainstThatCamerasBackground)
+{
+  // As above, the left view's cues score 0.8 and the right view's 0.05; the places beside the object score 0.3 in
+  // both views. The two views' mean (0.425) is within background_margin of theirs (0.3), but the view that sees
+  // the object tells it from its background by 0.5: unsure, not like the background (the end of the real
+  // catch_test1). When the background of the seeing view scores as well as the object there (0.7), it is like the
+  // background.
+  const EngineConfig defaults;
+  ASSERT_LT(0.5 * (0.8 + 0.05) - 0.3, defaults.background_margin);
+  ASSERT_GT(0.8 - 0.3, defaults.background_margin);
+  const std::vector<double> left(12, 0.8), right(12, 0.05);
+  const std::vector<FrameResult> apart = resultsUnder(left, defaults, right, 0.3, 0.3);
+  EXPECT_EQ(apart[10].support, Support::Unsure);
+  EXPECT_TRUE(apart[10].published());
+  EXPECT_EQ(apart[15].state, TrackState::Tracking);
+  const std::vector<FrameResult> alike = resultsUnder(left, defaults, right, 0.7, 0.3);
+  EXPECT_EQ(alike[10].support, Support::LikeBackground);
+  EXPECT_FALSE(alike[10].published());
 }
 
 TEST(EngineTrackState, ATrackThatStaysUnsureIsLostAfterUnsureFrames)

@@ -1282,8 +1282,11 @@ int FilterEngine::boundToViewingVolume(int s)
 }
 
 template <class IsEvidence>
-bool FilterEngine::backgroundSimilarity(int s, int best, IsEvidence is_evidence, double& background)
+bool FilterEngine::backgroundSimilarity(int s, int best, IsEvidence is_evidence, double& background,
+                                        double* view_background)
 {
+  if (view_background)
+    view_background[0] = view_background[1] = std::numeric_limits<double>::quiet_NaN();
   const int wanted = config_.background_samples;
   const std::vector<ImageHypotheses>& views = hypotheses_[s];
   if (wanted <= 0 || views.empty() || best < 0)
@@ -1323,6 +1326,9 @@ bool FilterEngine::backgroundSimilarity(int s, int best, IsEvidence is_evidence,
   double cues = 0.0;
   for (const ImageHypotheses& h : views)
   {
+    const int v = h.view == View::Left ? 0 : 1;
+    view_background_sum_[v].setZero(count);
+    double view_cues = 0.0;
     background_hyp_.view = h.view;
     background_hyp_.resize(count);
     for (int j = 0; j < count; ++j)
@@ -1338,16 +1344,26 @@ bool FilterEngine::backgroundSimilarity(int s, int best, IsEvidence is_evidence,
         continue;
       observation_models_[k]->evaluate(cache_, background_hyp_, background_ll_, background_sim_);
       background_sum_ += cue_trust_[k] * background_sim_;
+      view_background_sum_[v] += cue_trust_[k] * background_sim_;
       cues += cue_trust_[k];
+      view_cues += cue_trust_[k];
     }
+    if (view_background && view_cues > 0.0)
+      view_background[v] = median(view_background_sum_[v]) / view_cues;
   }
   if (!(cues > 0.0))
     return false;
-  std::vector<double> values(background_sum_.data(), background_sum_.data() + count);
-  auto mid = values.begin() + count / 2;
-  std::nth_element(values.begin(), mid, values.end());
-  background = *mid / cues;
+  background = median(background_sum_) / cues;
   return true;
+}
+
+double FilterEngine::median(const Eigen::VectorXd& values)
+{
+  std::vector<double>& v = median_scratch_;
+  v.assign(values.data(), values.data() + values.size());
+  auto mid = v.begin() + v.size() / 2;
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
 }
 
 template <class Take>
@@ -1689,19 +1705,36 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     // and 228 of 240; drawn scenes, 5 draws x 30 at seeds 1-3, 271 of 450 successful either way).
     const double one_view_bar = 0.5 * (config_.found_similarity + config_.lost_similarity);
     bool one_view = best >= config_.lost_similarity;
+    double seeing = -1.0;  // the best similarity of one view alone, when that view alone sees the object
+    int seeing_view = -1;
     if (!one_view && view_cues_[0] > 0.0 && view_cues_[1] > 0.0)
-      for (int i = 0; i < n && !one_view; ++i)
-        one_view = sum_sim_[i] > 0.0 &&
-                   std::max(view_sim_[0][i] / view_cues_[0], view_sim_[1][i] / view_cues_[1]) >= one_view_bar;
+      for (int i = 0; i < n; ++i)
+        for (int v = 0; v < 2; ++v)
+          if (sum_sim_[i] > 0.0 && view_sim_[v][i] / view_cues_[v] >= std::max(one_view_bar, seeing))
+          {
+            seeing = view_sim_[v][i] / view_cues_[v];
+            seeing_view = v;
+            one_view = true;
+          }
     one_view_seen = one_view_seen && one_view;
-    // ... and not by the background alike: the same cues at places beside the best particle.
+    // ... and not by the background alike: the same cues at places beside the best particle; for a set seen by one
+    // view alone, in that view (the other's low score is no measure of how the object stands out). At the end of
+    // the real catch_test1, the ball before a dark wall in the left view scored 0.5-0.6, before a bright window in
+    // the right 0.03-0.07, and their mean was within background_margin of the two views' background: the last
+    // reference frames went without an estimate. Real pitches at seeds 1-40: catch_test1 has an estimate on every
+    // reference frame in 30 against 19 of 40 runs with this, Ball_Launch1 in 25 against 24; drawn scenes (6 draws x
+    // 30 at seeds 1-3): 395 of 540 runs successful either way.
     double background = 0.0;
-    if (cues > 0.0 && backgroundSimilarity(s, static_cast<int>(best_index), is_evidence, background))
+    double view_background[2];
+    if (cues > 0.0 && backgroundSimilarity(s, static_cast<int>(best_index), is_evidence, background, view_background))
     {
       background_measured = true;
-      if (best - background < contrast)
+      double c = best - background;
+      if (seeing_view >= 0 && std::isfinite(view_background[seeing_view]))
+        c = std::max(c, seeing - view_background[seeing_view]);
+      if (c < contrast)
       {
-        contrast = best - background;
+        contrast = c;
         result.background = background;
       }
     }

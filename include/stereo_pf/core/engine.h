@@ -121,7 +121,9 @@ struct EngineConfig
   /// On a real pitch the ball passed in front of a bright panel seen by the right camera only: its right-view
   /// cues fell to 0-0.3 while the left view's stayed at 0.7-0.8, and the track was lost 5 frames before the
   /// pitch's end. A view "sees" the object when its cues' mean similarity is at least midway between
-  /// lost_similarity and found_similarity. false: the mean over both views alone decides.
+  /// lost_similarity and found_similarity. Such a frame is like the background (background_margin) only when that
+  /// view's best similarity is within the margin of its own background's, not the mean of the two views'. false:
+  /// the mean over both views alone decides.
   bool one_view_unsure = true;
   double respawn_fraction = 0.2;      ///< fraction of each set redrawn every frame while not Tracking
   /// While Tracking: the share of each set moved every frame to where the cues' target maps see the target
@@ -452,9 +454,13 @@ private:
   int boundToViewingVolume(int s);
   /// Median trust-weighted mean similarity of the evidence cues (`is_evidence`) at background locations along
   /// the rows of particle `best` of set `s` (its hypotheses shifted sideways, away from it); false when too few
-  /// locations fit.
+  /// locations fit. `view_background`, when given: the same of each view's cues alone (left, right; NaN for a view
+  /// the set is not seen in).
   template <class IsEvidence>
-  bool backgroundSimilarity(int s, int best, IsEvidence is_evidence, double& background);
+  bool backgroundSimilarity(int s, int best, IsEvidence is_evidence, double& background,
+                            double* view_background = nullptr);
+  /// The median of `values` (not empty).
+  double median(const Eigen::VectorXd& values);
   /// Every model's target as OpenCV YAML text, and back: learnTarget/loadTarget restore it when any model fails.
   std::string snapshotTargets() const;
   void restoreTargets(const std::string& snapshot);
@@ -597,6 +603,8 @@ private:
   Eigen::VectorXd scratch_ll_, scratch_sim_, sum_sim_, prior_log_, refine_prior_;
   ImageHypotheses background_hyp_, adapt_hyp_, adapt_right_hyp_;
   Eigen::VectorXd background_ll_, background_sim_, background_sum_;
+  Eigen::VectorXd view_background_sum_[2];  ///< background_sum_ of each view alone
+  std::vector<double> median_scratch_;
   std::vector<double> background_values_;
   std::vector<float> radius_scratch_;
   std::vector<int> resample_indices_;
