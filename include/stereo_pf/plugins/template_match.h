@@ -35,14 +35,16 @@ void normalisedCorrelation(const cv::Mat& image, const cv::Mat& templ, cv::Mat& 
 /// A window without contrast has c = 0. Invalid or non-finite hypotheses score c = -1.
 ///
 /// Adaptation (adapt(), called by the engine after frames in which the tracked object was seen): when the window
-/// at the estimate correlates with the current template by at least `adapt_min`, a running template moves towards
-/// it by `adapt_rate`; the template used is `anchor` parts the one learned from the box and the rest the running
-/// one, so it follows a turning object but cannot drift away from what was boxed. Not thread-safe.
+/// at the estimate correlates with the current template by at least `adapt_min`, a running template moves by
+/// `adapt_rate` towards the window within `adapt_align` apparent radii of the estimate (whole pixels) that correlates
+/// best with it: the object, not the estimate's error, is learned. The template used is `anchor` parts the one
+/// learned from the box and the rest the running one, so it follows a turning object but cannot drift away from what
+/// was boxed. Not thread-safe.
 ///
 /// Parameters (in the plugin's namespace): size (13, 5..41; structural), ring_scale (1.25, 1..3), ring_weight
 /// (0.3, 0..1), sigma (0.3, 0.001..10: tempered, the samples are nearest pixels, so a sharper term pins the
 /// centres to whole pixels; on the pendulum 0.1 gave 1.5 cm, 0.3 0.7 cm), adapt_rate (0.1, 0..1; 0: no adaptation), adapt_min (0.6, -1..1),
-/// anchor (0.3, 0..1).
+/// adapt_align (0.3, 0..1; 0: the window at the estimate), anchor (0.3, 0..1).
 class TemplateMatch : public ObservationModel
 {
 public:
@@ -77,6 +79,7 @@ private:
     double sigma = 0.3;
     double adapt_rate = 0.1;
     double adapt_min = 0.6;
+    double adapt_align = 0.3;
     double anchor = 0.3;
   };
   Tunables readTunables() const;
