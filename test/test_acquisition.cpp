@@ -917,13 +917,13 @@ namespace
 /// image (through `cache`, reset to that frame).
 struct LearnedGreyBall
 {
-  LearnedGreyBall()
+  explicit LearnedGreyBall(double depth = 1.1) : truth(-0.1, 0.05, depth)
   {
     f = render(scene({ ball(0.04, truth, cv::Vec3d(200, 200, 200)) }, 2.2, true), l, r, box);
     cache.reset(f);
     learned = m->learnTarget(cache, stereo_pf::View::Left, box, error);
   }
-  const Eigen::Vector3d truth{ -0.1, 0.05, 1.1 };
+  const Eigen::Vector3d truth;
   cv::Mat l, r;
   cv::Rect box;
   stereo_pf::StereoFrame f;
@@ -1068,47 +1068,54 @@ TEST(TemplateMatch, AdaptsToTheObjectNotToAnEstimateBesideIt)
   // A track's estimate a quarter of a radius beside the object's centre, frame after frame: the template adapts to
   // the window there that matches it best (adapt_align), so it stays centred on the object and keeps scoring the
   // object's centre above the estimate's place. Adapted at the estimate itself (adapt_align 0) it learns the window
-  // beside the object, and the place beside it comes to score best: the next estimate would lie farther off.
+  // beside the object, and the place beside it comes to score best: the next estimate would lie farther off. At 1.1 m
+  // (~20 px in radius) every pixel within reach is tried; at 0.35 m (~60 px) a coarse grid first, then every pixel
+  // around its best.
   using namespace stereo_pf;
-  LearnedGreyBall g;
-  ASSERT_TRUE(g.learned) << g.error;
-  const float radius = static_cast<float>(g.f.geometry.apparentRadius(0.04, g.truth.z()));
-  const Pixel at = g.f.geometry.projectLeft(g.truth);
-  ImageHypotheses places;  // the object's centre, then the estimate beside it
-  places.view = View::Left;
-  places.resize(2);
-  for (int i = 0; i < 2; ++i)
+  for (double depth : { 1.1, 0.35 })
   {
-    places.u[i] = static_cast<float>(at.u) + i * 0.25f * radius;
-    places.v[i] = static_cast<float>(at.v);
-    places.radius[i] = radius;
-    places.valid[i] = 1;
+    SCOPED_TRACE("ball at " + std::to_string(depth) + " m");
+    LearnedGreyBall g(depth);
+    ASSERT_TRUE(g.learned) << g.error;
+    const float radius = static_cast<float>(g.f.geometry.apparentRadius(0.04, g.truth.z()));
+    const Pixel at = g.f.geometry.projectLeft(g.truth);
+    ImageHypotheses places;  // the object's centre, then the estimate beside it
+    places.view = View::Left;
+    places.resize(2);
+    for (int i = 0; i < 2; ++i)
+    {
+      places.u[i] = static_cast<float>(at.u) + i * 0.25f * radius;
+      places.v[i] = static_cast<float>(at.v);
+      places.radius[i] = radius;
+      places.valid[i] = 1;
+    }
+    ImageHypotheses estimate = places;
+    estimate.resize(1);
+    estimate.u[0] = places.u[1];
+    auto adaptedScores = [&](const Parameters& params) {
+      auto m = std::make_shared<TemplateMatch>();
+      m->initialize("template", params);
+      std::string error;
+      EXPECT_TRUE(m->learnTarget(g.cache, View::Left, g.box, error)) << error;
+      for (int k = 0; k < 40; ++k)
+        m->adapt(g.cache, estimate);
+      Eigen::VectorXd ll(2), sim(2);
+      m->evaluate(g.cache, places, ll, sim);
+      return sim;
+    };
+    Parameters params;
+    params.set("adapt_min", 0.3);  // a plain ball's window a quarter of a radius off correlates ~0.5 with the template
+    const Eigen::VectorXd aligned = adaptedScores(params);
+    Parameters at_estimate = params;
+    at_estimate.set("adapt_align", 0.0);
+    const Eigen::VectorXd unaligned = adaptedScores(at_estimate);
+    std::printf("radius %.1f px, after 40 adaptations: centre %.3f, estimate's place %.3f aligned; %.3f, %.3f at the "
+                "estimate\n",
+                radius, aligned[0], aligned[1], unaligned[0], unaligned[1]);
+    EXPECT_GT(aligned[0], aligned[1] + 0.05);
+    EXPECT_GT(aligned[0], 0.8);
+    EXPECT_GT(unaligned[1], unaligned[0]) << "adapted at the estimate the template must drift: else this tests nothing";
   }
-  ImageHypotheses estimate = places;
-  estimate.resize(1);
-  estimate.u[0] = places.u[1];
-  auto adaptedScores = [&](const Parameters& params) {
-    auto m = std::make_shared<TemplateMatch>();
-    m->initialize("template", params);
-    std::string error;
-    EXPECT_TRUE(m->learnTarget(g.cache, View::Left, g.box, error)) << error;
-    for (int k = 0; k < 40; ++k)
-      m->adapt(g.cache, estimate);
-    Eigen::VectorXd ll(2), sim(2);
-    m->evaluate(g.cache, places, ll, sim);
-    return sim;
-  };
-  Parameters params;
-  params.set("adapt_min", 0.3);  // a plain ball's window a quarter of a radius off correlates ~0.5 with the template
-  const Eigen::VectorXd aligned = adaptedScores(params);
-  Parameters at_estimate = params;
-  at_estimate.set("adapt_align", 0.0);
-  const Eigen::VectorXd unaligned = adaptedScores(at_estimate);
-  std::printf("after 40 adaptations: centre %.3f, estimate's place %.3f aligned; %.3f, %.3f at the estimate\n",
-              aligned[0], aligned[1], unaligned[0], unaligned[1]);
-  EXPECT_GT(aligned[0], aligned[1] + 0.05);
-  EXPECT_GT(aligned[0], 0.8);
-  EXPECT_GT(unaligned[1], unaligned[0]) << "adapted at the estimate the template must drift: else this tests nothing";
 }
 
 TEST(TemplateMatch, TwoTemplatesInOneTrackerHaveTargetMapsOfTheirOwn)
