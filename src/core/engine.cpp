@@ -1283,10 +1283,9 @@ int FilterEngine::boundToViewingVolume(int s)
 
 template <class IsEvidence>
 bool FilterEngine::backgroundSimilarity(int s, int best, IsEvidence is_evidence, double& background,
-                                        double* view_background)
+                                        double (&view_background)[2])
 {
-  if (view_background)
-    view_background[0] = view_background[1] = std::numeric_limits<double>::quiet_NaN();
+  view_background[0] = view_background[1] = std::numeric_limits<double>::quiet_NaN();
   const int wanted = config_.background_samples;
   const std::vector<ImageHypotheses>& views = hypotheses_[s];
   if (wanted <= 0 || views.empty() || best < 0)
@@ -1348,7 +1347,7 @@ bool FilterEngine::backgroundSimilarity(int s, int best, IsEvidence is_evidence,
       cues += cue_trust_[k];
       view_cues += cue_trust_[k];
     }
-    if (view_background && view_cues > 0.0)
+    if (view_cues > 0.0)
       view_background[v] = median(view_background_sum_[v]) / view_cues;
   }
   if (!(cues > 0.0))

@@ -454,11 +454,10 @@ private:
   int boundToViewingVolume(int s);
   /// Median trust-weighted mean similarity of the evidence cues (`is_evidence`) at background locations along
   /// the rows of particle `best` of set `s` (its hypotheses shifted sideways, away from it); false when too few
-  /// locations fit. `view_background`, when given: the same of each view's cues alone (left, right; NaN for a view
-  /// the set is not seen in).
+  /// locations fit. `view_background`: the same of each view's cues alone (left, right; NaN for a view the set is
+  /// not seen in).
   template <class IsEvidence>
-  bool backgroundSimilarity(int s, int best, IsEvidence is_evidence, double& background,
-                            double* view_background = nullptr);
+  bool backgroundSimilarity(int s, int best, IsEvidence is_evidence, double& background, double (&view_background)[2]);
   /// The median of `values` (not empty).
   double median(const Eigen::VectorXd& values);
   /// Every model's target as OpenCV YAML text, and back: learnTarget/loadTarget restore it when any model fails.
