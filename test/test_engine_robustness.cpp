@@ -715,6 +715,72 @@ std::vector<double> jumpSpeedsAfterATeleport(double max_jump_speed)
 }
 }  // namespace
 
+namespace
+{
+/// The grey template that counts the hypotheses it scores: those the screening left valid.
+class ScoreCounting : public TemplateMatch
+{
+public:
+  long scored = 0;
+  void evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
+                Eigen::Ref<Eigen::VectorXd> similarity) override
+  {
+    scored += std::count(hyp.valid.begin(), hyp.valid.end(), 1);
+    TemplateMatch::evaluate(cache, hyp, log_likelihood, similarity);
+  }
+};
+
+struct ScreenedRun
+{
+  double rms = 0.0;    ///< m, over the tracked frames
+  long scored = 0;     ///< hypotheses the template scored
+  long screened = 0;   ///< FrameResult::screened, summed
+};
+
+/// The pendulum's first 40 frames tracked by the colour histogram, the template, the outline and the stereo match
+/// (two stages while tracking) with the given screen_mass.
+ScreenedRun trackScreened(double screen_mass)
+{
+  Scene scene("pendulum_uncluttered.yaml");
+  auto grey = cue<ScoreCounting>("template");
+  EngineConfig config;
+  config.screen_mass = screen_mass;
+  FilterEngine engine(position3D(),
+                      { cue<ColourHSI>("colour"), grey, cue<ColourContour>("colour_contour"), cue<StereoMatch>("stereo") },
+                      config);
+  std::string error;
+  EXPECT_TRUE(engine.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
+  ScreenedRun run;
+  double sum2 = 0.0;
+  const int frames = 40;
+  for (int k = 0; k < frames; ++k)
+  {
+    const FrameResult r = engine.step(scene.frame(k));
+    EXPECT_EQ(r.state, TrackState::Tracking) << "frame " << k;
+    sum2 += (r.estimate.position - scene.renderer().targetPosition(k)).squaredNorm();
+    run.screened += r.screened;
+  }
+  run.rms = std::sqrt(sum2 / frames);
+  run.scored = grey->scored;
+  return run;
+}
+}  // namespace
+
+TEST(EngineScreening, TheCuesAfterTheFirstWeighOnlyTheParticlesItFindsWorthIt)
+{
+  // screen_mass 1 weighs every particle with every cue; the default leaves out those that carry the last 0.1 % of
+  // the colour histogram's (tempered) weight, in the first stage, and of the outline's in the refining one.
+  const ScreenedRun every = trackScreened(1.0);
+  const ScreenedRun screened = trackScreened(EngineConfig().screen_mass);
+  std::printf("template scored %ld hypotheses screened, %ld not; %ld particles screened out; RMS %.2f / %.2f cm\n",
+              screened.scored, every.scored, screened.screened, 100.0 * screened.rms, 100.0 * every.rms);
+  EXPECT_EQ(every.screened, 0);
+  EXPECT_GT(screened.screened, 0);
+  EXPECT_LT(screened.scored, every.scored * 3 / 4);  // at least a quarter of its work saved
+  EXPECT_LT(screened.rms, 0.01);
+  EXPECT_LT(screened.rms, every.rms + 0.002);
+}
+
 TEST(EngineRecovery, NoJumpIsFasterThanMaxJumpSpeed)
 {
   // Without the bound the recovery search jumps to the ball wherever it went; with it, only as far as the speed

@@ -53,7 +53,12 @@ TEST(ParticleSet, TemperingKeepsTheEssAtItsFloorAndTheOrderOfTheWeights)
   p.normalise();
   ASSERT_LT(p.effectiveSampleSize(), 1.1);
   likelihood();
+  // temperingPower() finds the same exponent and leaves the weights alone.
+  const Eigen::VectorXd untempered = p.log_weights;
+  const double power = temperingPower(prior, p.log_weights, 20.0);
+  EXPECT_TRUE((p.log_weights.array() == untempered.array()).all());
   const double beta = p.temper(prior, 20.0);
+  EXPECT_EQ(power, beta);
   EXPECT_GT(beta, 0.0);
   EXPECT_LT(beta, 0.1);
   EXPECT_GE(p.effectiveSampleSize(), 20.0);

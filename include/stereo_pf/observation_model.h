@@ -41,7 +41,9 @@ public:
   /// Evaluate every hypothesis of one view: write the model's log-likelihood into `log_likelihood[i]`
   /// (any constant offset is irrelevant) and a similarity in [0, 1] into `similarity[i]` (1 = looks
   /// exactly like the target; used for the track state). Invalid hypotheses must get a finite low
-  /// log-likelihood and similarity 0. Both outputs have hyp.size() entries.
+  /// log-likelihood and similarity 0. Both outputs have hyp.size() entries. While tracking, the cues after a
+  /// stage's first also see the particles that one found negligible marked invalid (EngineConfig::screen_mass):
+  /// skipping invalid hypotheses before any per-pixel work is what makes the screening save time.
   /// hyp.radius <= 0 (or not finite) marks a 2D hypothesis without a size (the stereo-constraints model): use a
   /// fixed window of the cue's own. Called several times per frame (per set and view, per stage, and on samples
   /// beside the best particle): keep no state between calls. The best particle's mean similarity over the

@@ -130,6 +130,9 @@ const std::vector<EngineField>& engineFields()
     doubleField<&C::min_ess>("min_ess", 0.0, 1.0, true,
                              "while tracking with refining cues, the other cues' likelihood is raised to the largest "
                              "power in (0, 1] leaving an ESS of at least min_ess x N (0: off)"),
+    doubleField<&C::screen_mass>("screen_mass", 0.0, 1.0, true,
+                                 "while tracking, the cues after each stage's first weigh only the particles that "
+                                 "carry this share of the first cue's tempered weights (1: every particle)"),
     { { "estimator", ParameterSpec::Type::String, "", 0.0, 0.0, { "mean", "sum_inverse_distances", "density" },
         "point estimator: mean (thesis 6.4.1), sum_inverse_distances (6.4.2, O(N^2)) or density (6.4.3)", true },
       [](const EngineField& f, const Parameters& p, EngineConfig& c) {
@@ -1366,7 +1369,7 @@ double FilterEngine::median(const Eigen::VectorXd& values)
 }
 
 template <class Take>
-double FilterEngine::observe(const StereoGeometry& geometry, int s, Take take)
+double FilterEngine::observe(const StereoGeometry& geometry, int s, Take take, const Screen* screen)
 {
   ParticleSet& p = sets_[s];
   const ImageHypotheses* left = nullptr;
@@ -1376,30 +1379,42 @@ double FilterEngine::observe(const StereoGeometry& geometry, int s, Take take)
     state_model_->project(geometry, s, p, hyp);
     (hyp.view == View::Left ? left : right) = &hyp;
   }
-  double cues = 0.0;
+  // Which models weigh, in their order; screening needs one after the first.
+  std::vector<std::pair<size_t, Use>> plan;
   for (size_t k = 0; k < observation_models_.size(); ++k)
   {
-    ObservationModel* model = observation_models_[k].get();
-    const Use use = take(*model);
+    const Use use = take(*observation_models_[k]);
     const double trust = cue_trust_[k];
     if (!(use.weight > 0.0) || !(trust > 0.0))
       continue;
-    const double weight = use.weight * model->weight() * trust;
+    if (observation_models_[k]->comparesViews() && !(left && right))
+      continue;  // scores the agreement of a particle's two images: only for sets seen in both
+    plan.emplace_back(k, use);
+  }
+  const bool screening = screen && plan.size() >= 2 && config_.screen_mass < 1.0;
+  int screened = 0;
+  double cues = 0.0;
+  for (size_t step = 0; step < plan.size(); ++step)
+  {
+    if (screening && step == 1)
+      screened = screenAfterFirst(s, *screen);
+    const size_t k = plan[step].first;
+    ObservationModel* model = observation_models_[k].get();
+    const bool evidence = plan[step].second.evidence;
+    const double trust = cue_trust_[k];
+    const double weight = plan[step].second.weight * model->weight() * trust;
     if (model->comparesViews())
     {
-      // Scores the agreement of a particle's two images: only for sets seen in both, and not evidence.
-      if (left && right)
-      {
-        model->evaluatePair(cache_, *left, *right, scratch_ll_, scratch_sim_);
-        p.log_weights += weight * scratch_ll_;
-      }
+      // Not evidence.
+      model->evaluatePair(cache_, *left, *right, scratch_ll_, scratch_sim_);
+      p.log_weights += weight * scratch_ll_;
       continue;
     }
     for (const ImageHypotheses& hyp : hypotheses_[s])
     {
       model->evaluate(cache_, hyp, scratch_ll_, scratch_sim_);
       p.log_weights += weight * scratch_ll_;
-      if (use.evidence)
+      if (evidence)
       {
         sum_sim_ += trust * scratch_sim_;
         cues += trust;
@@ -1409,7 +1424,81 @@ double FilterEngine::observe(const StereoGeometry& geometry, int s, Take take)
       }
     }
   }
+  if (screened > 0)
+  {
+    screened_count_ += screened;
+    std::vector<ImageHypotheses>& views = hypotheses_[s];
+    for (size_t h = 0; h < views.size(); ++h)
+      views[h].valid = screen_valid_[h];
+    for (int i = 0; i < p.size(); ++i)
+      if (screened_[i])
+      {
+        p.log_weights[i] = -std::numeric_limits<double>::infinity();
+        if (sum_sim_.size() == p.size())
+          sum_sim_[i] = 0.0;  // nor is it evidence
+        for (int v = 0; v < 2; ++v)
+          if (view_sim_[v].size() == p.size())
+            view_sim_[v][i] = 0.0;
+      }
+  }
   return cues;
+}
+
+int FilterEngine::screenAfterFirst(int s, const Screen& screen)
+{
+  ParticleSet& p = sets_[s];
+  const int n = p.size();
+  screened_.assign(n, 0);
+  if (!screen.prior || screen.prior->size() != n)
+    return 0;
+  const Eigen::VectorXd& prior = *screen.prior;
+  const double beta = temperingPower(prior, p.log_weights, screen.min_ess);
+  screen_order_.clear();
+  double top = -std::numeric_limits<double>::infinity();
+  for (int i = 0; i < n; ++i)
+    if (std::isfinite(prior[i]) && std::isfinite(p.log_weights[i]))
+    {
+      const double t = prior[i] + beta * (p.log_weights[i] - prior[i]);
+      screen_order_.emplace_back(t, i);
+      top = std::max(top, t);
+    }
+  if (screen_order_.empty())
+    return 0;
+  double total = 0.0;
+  for (std::pair<double, int>& e : screen_order_)
+    total += (e.first = std::exp(e.first - top));
+  std::sort(screen_order_.begin(), screen_order_.end(),
+            [](const std::pair<double, int>& a, const std::pair<double, int>& b) {
+              return a.first > b.first || (a.first == b.first && a.second < b.second);
+            });
+  // The best particles up to screen_mass of the total stay; so do the ties of the last one kept.
+  double carried = 0.0;
+  size_t kept = 0;
+  while (kept < screen_order_.size() && carried < config_.screen_mass * total)
+    carried += screen_order_[kept++].first;
+  while (kept < screen_order_.size() && screen_order_[kept].first == screen_order_[kept - 1].first)
+    ++kept;
+  int count = 0;
+  for (size_t j = kept; j < screen_order_.size(); ++j)
+  {
+    const int i = screen_order_[j].second;
+    if (screen.keep && i < static_cast<int>(screen.keep->size()) && (*screen.keep)[i])
+      continue;
+    screened_[i] = 1;
+    ++count;
+  }
+  if (count == 0)
+    return 0;
+  std::vector<ImageHypotheses>& views = hypotheses_[s];
+  screen_valid_.resize(views.size());
+  for (size_t h = 0; h < views.size(); ++h)
+  {
+    screen_valid_[h] = views[h].valid;
+    for (int i = 0; i < n && i < views[h].size(); ++i)
+      if (screened_[i])
+        views[h].valid[i] = 0;
+  }
+  return count;
 }
 
 int FilterEngine::awayFromTrack(const ImageHypotheses& h, std::vector<int>& flags) const
@@ -1499,14 +1588,17 @@ double FilterEngine::refineSecondStage(const StereoGeometry& geometry, int s, Re
     jumped_[i] = resample_indices_[i] < jumps ? 1 : 0;
   jitter(p, cov, config_.refine_jitter, rng_);
   p.log_weights.setZero();
-  observe(geometry, s, [&](const ObservationModel& m) { return refining(m) ? Use{ 1.0, false } : Use{}; });
+  // The set was resampled: a uniform prior, the refining cues' likelihood alone is tempered (and screened).
+  refine_prior_.setZero(n);
+  Screen screen;
+  screen.prior = &refine_prior_;
+  screen.min_ess = config_.refine_min_ess * n;
+  screen.keep = &jumped_;
+  observe(geometry, s, [&](const ObservationModel& m) { return refining(m) ? Use{ 1.0, false } : Use{}; },
+          &screen);
   escaped = boundToViewingVolume(s) == 0 || escaped;
   if (config_.refine_min_ess > 0.0)
-  {
-    // The set was resampled: a uniform prior, the refining cues' likelihood alone is tempered.
-    refine_prior_.setZero(n);
     p.temper(refine_prior_, config_.refine_min_ess * n);
-  }
   if (jumps > 0 && !hypotheses_[s].empty())
     log_marginal += keepJumpShares(p, hypotheses_[s][0]);
   return log_marginal;
@@ -1532,6 +1624,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
   }
   volume_ = ViewingVolume(geometry, config_.min_disparity, max_depth);
   FrameResult result;
+  screened_count_ = 0;
 
   double dt = initialised_ ? frame.stamp - last_stamp_ : config_.nominal_dt;
   if (!(dt > 0.0) || !std::isfinite(dt))
@@ -1644,11 +1737,22 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
     }
     scratch_ll_.resize(n);
     scratch_sim_.resize(n);
-    const double cues = observe(geometry, s, [&](const ObservationModel& m) {
-      if (!active(m) || (two_stage && refining(m)))
-        return Use{};
-      return refining(m) ? Use{ config_.refine_search_weight, false } : Use{ 1.0, isEvidence(m) };
-    });
+    // While tracking in two stages the first is screened (EngineConfig::screen_mass), never this frame's jumps.
+    const int jump_rows = s < static_cast<int>(jump_rows_.size()) ? std::min(jump_rows_[s], n) : 0;
+    screen_keep_.assign(n, 0);
+    std::fill(screen_keep_.begin(), screen_keep_.begin() + jump_rows, 1);
+    Screen screen;
+    screen.prior = &prior_log_;
+    screen.min_ess = config_.min_ess * n;
+    screen.keep = &screen_keep_;
+    const double cues = observe(
+        geometry, s,
+        [&](const ObservationModel& m) {
+          if (!active(m) || (two_stage && refining(m)))
+            return Use{};
+          return refining(m) ? Use{ config_.refine_search_weight, false } : Use{ 1.0, isEvidence(m) };
+        },
+        two_stage ? &screen : nullptr);
     escaped = boundToViewingVolume(s) == 0 || escaped;
     // A lost track is not found again on another object like it that was seen beside the track (lookalike_memory).
     if (!tracking && track_reference_ >= 0.0)
@@ -1841,6 +1945,7 @@ FrameResult FilterEngine::step(const StereoFrame& frame)
       result.resampled = true;
     }
   }
+  result.screened = screened_count_;
   return result;
 }
 

@@ -2,6 +2,7 @@
 // Copyright (c) 2026, stereo_pf developers
 #include "stereo_pf/core/particle_set.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -61,11 +62,22 @@ double ParticleSet::temper(const Eigen::VectorXd& prior_log, double min_ess)
   const int n = size();
   if (!(min_ess > 0.0) || effectiveSampleSize() >= min_ess || prior_log.size() != n)
     return 1.0;
-  // The ESS of the weights prior + beta * likelihood: the finite particles' prior and log-likelihood gathered
-  // once, then per beta one vectorised pass of exponentials (no weights written).
-  Eigen::ArrayXd prior(n), loglik(n);
-  int m = 0;
+  const double beta = temperingPower(prior_log, log_weights, min_ess);
   for (int i = 0; i < n; ++i)
+    if (std::isfinite(prior_log[i]) && std::isfinite(log_weights[i]))
+      log_weights[i] = prior_log[i] + beta * (log_weights[i] - prior_log[i]);
+  normalise();
+  return beta;
+}
+
+double temperingPower(const Eigen::VectorXd& prior_log, const Eigen::VectorXd& log_weights, double min_ess)
+{
+  const Eigen::Index n = std::min(prior_log.size(), log_weights.size());
+  // The finite particles' prior and log-likelihood gathered once, then per beta one vectorised pass of
+  // exponentials.
+  Eigen::ArrayXd prior(n), loglik(n);
+  Eigen::Index m = 0;
+  for (Eigen::Index i = 0; i < n; ++i)
     if (std::isfinite(prior_log[i]) && std::isfinite(log_weights[i]))
     {
       prior[m] = prior_log[i];
@@ -80,18 +92,15 @@ double ParticleSet::temper(const Eigen::VectorXd& prior_log, double min_ess)
     const double sum = w.sum(), sum2 = w.square().sum();
     return sum2 > 0.0 ? sum * sum / sum2 : 0.0;
   };
+  if (!(min_ess > 0.0) || ess(1.0) >= min_ess)
+    return 1.0;
   double lo = 0.0, hi = 1.0;  // ess(lo) keeps min_ess (the prior's spread, or as near as it comes)
   for (int k = 0; k < 10; ++k)
   {
     const double mid = 0.5 * (lo + hi);
     (ess(mid) >= min_ess ? lo : hi) = mid;
   }
-  const double beta = std::max(lo, 1.0 / 1024.0);
-  for (int i = 0; i < n; ++i)
-    if (std::isfinite(prior_log[i]) && std::isfinite(log_weights[i]))
-      log_weights[i] = prior_log[i] + beta * (log_weights[i] - prior_log[i]);
-  normalise();
-  return beta;
+  return std::max(lo, 1.0 / 1024.0);
 }
 
 }  // namespace stereo_pf

@@ -65,6 +65,11 @@ struct EngineConfig
   /// themselves are tempered only down to the far smaller refine_min_ess (to min_ess the precision they give was
   /// lost: the pendulum 0.5 -> 1 cm); the published covariance adds the first stage's spread to theirs. 0: off.
   double min_ess = 0.1;
+  /// Screening (a cascade) while tracking: in each stage, once the first cue has weighed the set, the cues after
+  /// it weigh only the particles that carry screen_mass of the weights the first cue alone gives, tempered as
+  /// that stage's are (min_ess, refine_min_ess); the others weigh nothing. A particle the first cue finds
+  /// negligible is not worth the others' cost. This frame's recovery jumps are always weighed. 1: every particle.
+  double screen_mass = 0.999;
   Estimator estimator = Estimator::Mean;
   double density_radius = 0.03;       ///< radius of the density estimate, in state units (m, or px for 2D sets)
   unsigned long seed = 1;             ///< RNG seed
@@ -269,6 +274,9 @@ struct FrameResult
   double log_marginal = 0.0;           ///< log mean likelihood (sum over sets)
   bool resampled = false;
   double dt = 0.0;                     ///< seconds since the previous frame
+  /// Particles the screening (EngineConfig::screen_mass) left out of the cues after a stage's first, summed over
+  /// the frame's stages and sets.
+  int screened = 0;
   /// Support low evidence, but the evidence reaches EngineConfig::estimate_similarity: the object is seen faintly.
   bool faint = false;
 
@@ -473,8 +481,20 @@ private:
   /// Project set `s` and add to its log-weights the log-likelihoods of the models as `take(model)` (a Use)
   /// says; returns the total trust of the per-view cue evaluations added to sum_sim_ (each added times its
   /// model's trust; comparesViews models: none).
+  /// With `screen` (EngineConfig::screen_mass below 1), the models after the first weigh only the particles the
+  /// first leaves standing (screenAfterFirst()); the rest end at -inf and without evidence.
+  struct Screen
+  {
+    const Eigen::VectorXd* prior = nullptr;  ///< the stage's prior log-weights, as tempering takes them
+    double min_ess = 0.0;                    ///< the stage's tempering target (an ESS, not a share)
+    const std::vector<int>* keep = nullptr;  ///< particles flagged here are never screened out (may be null)
+  };
   template <class Take>
-  double observe(const StereoGeometry& geometry, int s, Take take);
+  double observe(const StereoGeometry& geometry, int s, Take take, const Screen* screen = nullptr);
+  /// Flags in screened_ the particles of set `s` outside the smallest group that carries screen_mass of the
+  /// weights its log-weights give, tempered to `screen`'s target, and marks their hypotheses invalid (saved in
+  /// screen_valid_, for observe() to restore). Returns how many it flagged.
+  int screenAfterFirst(int s, const Screen& screen);
   /// Unflags the particles flagged in `flags` whose image in `h` (a set's first view) lies within two apparent
   /// radii of the unflagged particles' mean image: they landed on the track. Returns how many stay flagged.
   int awayFromTrack(const ImageHypotheses& h, std::vector<int>& flags) const;
@@ -600,6 +620,11 @@ private:
 
   // scratch buffers kept across frames
   Eigen::VectorXd scratch_ll_, scratch_sim_, sum_sim_, prior_log_, refine_prior_;
+  int screened_count_ = 0;  ///< this frame's FrameResult::screened so far
+  std::vector<int> screen_keep_;                        ///< particles a stage never screens out
+  std::vector<char> screened_;                          ///< per particle: screened out in this stage
+  std::vector<std::vector<unsigned char>> screen_valid_;  ///< each view's valid flags before screening
+  std::vector<std::pair<double, int>> screen_order_;   ///< (tempered log-weight, particle), best first
   ImageHypotheses background_hyp_, adapt_hyp_, adapt_right_hyp_;
   Eigen::VectorXd background_ll_, background_sim_, background_sum_;
   Eigen::VectorXd view_background_sum_[2];  ///< background_sum_ of each view alone

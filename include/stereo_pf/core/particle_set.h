@@ -35,4 +35,9 @@ struct ParticleSet
   double temper(const Eigen::VectorXd& prior_log, double min_ess);
 };
 
+/// temper()'s exponent without touching any weights: the largest power beta in (0, 1] (bisection, to 1/1024) for
+/// which prior_log + beta * (log_weights - prior_log) keeps an effective sample size of at least min_ess; 1 when
+/// the untempered weights already do. Entries not finite in either vector weigh nothing.
+double temperingPower(const Eigen::VectorXd& prior_log, const Eigen::VectorXd& log_weights, double min_ess);
+
 }  // namespace stereo_pf
