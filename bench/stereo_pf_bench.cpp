@@ -638,13 +638,14 @@ void BM_Step(benchmark::State& state, StepConfig config)
   for (; k < kPeriodFrames; ++k)
     engine.step(s.frame(k));
 
-  long frames = 0, tracking = 0;
+  long frames = 0, tracking = 0, screened = 0;
   double error_sum = 0.0;
   for (auto _ : state)
   {
     const FrameResult r = engine.step(s.frame(k));
     benchmark::DoNotOptimize(r.estimate.position.data());
     tracking += r.state == TrackState::Tracking ? 1 : 0;
+    screened += r.screened;
     error_sum += (r.estimate.position - s.target(k)).norm();
     ++frames;
     ++k;
@@ -652,6 +653,7 @@ void BM_Step(benchmark::State& state, StepConfig config)
   setItems(state, n, n * static_cast<long>(model->numSets()));
   state.counters["tracking"] = frames > 0 ? static_cast<double>(tracking) / frames : 0.0;
   state.counters["err_cm"] = frames > 0 ? 100.0 * error_sum / frames : 0.0;
+  state.counters["screened"] = frames > 0 ? static_cast<double>(screened) / frames : 0.0;
 }
 // Registered per scene (see scene()): the colour-only configurations first ("colour": the default cues,
 // histogram and outline; "histogram": the thesis's colour model alone).

@@ -112,6 +112,21 @@ protected:
     std::string error;
     ASSERT_TRUE(model_->learnTarget(cache_, View::Left, boxOf(kU, kV, kRadius), error)) << error;
   }
+  /// Hypotheses at (u[i], kV) with the disc's radius, all valid.
+  static ImageHypotheses onTheRow(const std::vector<float>& u)
+  {
+    ImageHypotheses h;
+    h.view = View::Left;
+    h.resize(static_cast<int>(u.size()));
+    for (size_t i = 0; i < u.size(); ++i)
+    {
+      h.u[i] = u[i];
+      h.v[i] = kV;
+      h.radius[i] = kRadius;
+      h.valid[i] = 1;
+    }
+    return h;
+  }
   double at(float du, float dv, float dr = 0.0f)
   {
     return model_->mismatch(cache_, View::Left, kU + du, kV + dv, kRadius + dr);
@@ -147,17 +162,8 @@ TEST_F(OrangeBall, VariesContinuouslyBelowOnePixel)
 
 TEST_F(OrangeBall, LikelihoodSimilarityAndBadHypotheses)
 {
-  ImageHypotheses h;
-  h.view = View::Left;
-  const std::vector<float> u = { kU, kU + 2.0f, 40.0f, kU, kU, std::numeric_limits<float>::quiet_NaN(), -30.0f, kU };
-  h.resize(static_cast<int>(u.size()));
-  for (size_t i = 0; i < u.size(); ++i)
-  {
-    h.u[i] = u[i];
-    h.v[i] = kV;
-    h.radius[i] = kRadius;
-    h.valid[i] = 1;
-  }
+  ImageHypotheses h =
+      onTheRow({ kU, kU + 2.0f, 40.0f, kU, kU, std::numeric_limits<float>::quiet_NaN(), -30.0f, kU });
   h.valid[3] = 0;         // unobservable
   h.radius[4] = -1.0f;    // 2D: the learned radius (half the box's smaller side)
   h.radius[7] = 200.0f;   // a circle mostly outside the image
@@ -177,6 +183,25 @@ TEST_F(OrangeBall, LikelihoodSimilarityAndBadHypotheses)
   }
   Eigen::VectorXd short_ll(3), short_sim(3);
   EXPECT_THROW(model_->evaluate(cache_, h, short_ll, short_sim), std::invalid_argument);
+}
+
+TEST_F(OrangeBall, ThePreviewScoresOnHalfTheLinesOnTheSameScale)
+{
+  // The engine screens particles by the preview (8 of the 16 lines by default): about evaluate()'s log-likelihood at
+  // the outline and on the wall, and as sharp (a hypothesis off by 2 px scores lower); none with preview_lines 0.
+  const ImageHypotheses h = onTheRow({ kU, kU + 2.0f, 40.0f });
+  Eigen::VectorXd ll(3), sim(3), coarse(3);
+  model_->evaluate(cache_, h, ll, sim);
+  ASSERT_TRUE(model_->preview(cache_, h, coarse));
+  EXPECT_GT(coarse[0], coarse[1]);
+  EXPECT_GT(coarse[1], coarse[2]);
+  for (const int i : { 0, 2 })
+    EXPECT_NEAR(coarse[i], ll[i], 0.2 * std::abs(ll[2])) << i;
+  auto off = makeModel(with("preview_lines", "0"));
+  std::string error;
+  ASSERT_TRUE(off->learnTarget(cache_, View::Left, boxOf(kU, kV, kRadius), error)) << error;
+  EXPECT_FALSE(off->preview(cache_, h, coarse));
+  EXPECT_THROW(makeModel(with("preview_lines", "2")), ParameterError);
 }
 
 TEST_F(OrangeBall, ForegroundMapAndBackgroundHistogram)

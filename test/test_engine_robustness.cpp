@@ -730,23 +730,47 @@ public:
   }
 };
 
+/// The colour histogram that counts the hypotheses it scores in full (evaluate()) and in preview.
+class ColourCounting : public ColourHSI
+{
+public:
+  long scored = 0, previewed = 0;
+  void evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
+                Eigen::Ref<Eigen::VectorXd> similarity) override
+  {
+    scored += std::count(hyp.valid.begin(), hyp.valid.end(), 1);
+    ColourHSI::evaluate(cache, hyp, log_likelihood, similarity);
+  }
+  bool preview(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood) override
+  {
+    const bool has = ColourHSI::preview(cache, hyp, log_likelihood);
+    previewed += has ? std::count(hyp.valid.begin(), hyp.valid.end(), 1) : 0;
+    return has;
+  }
+};
+
 struct ScreenedRun
 {
-  double rms = 0.0;    ///< m, over the tracked frames
-  long scored = 0;     ///< hypotheses the template scored
-  long screened = 0;   ///< FrameResult::screened, summed
+  double rms = 0.0;        ///< m, over the tracked frames
+  long scored = 0;         ///< hypotheses the template scored
+  long colour_scored = 0;  ///< hypotheses the colour histogram scored in full
+  long previewed = 0;      ///< hypotheses it previewed
+  long screened = 0;       ///< FrameResult::screened, summed
 };
 
 /// The pendulum's first 40 frames tracked by the colour histogram, the template, the outline and the stereo match
-/// (two stages while tracking) with the given screen_mass.
-ScreenedRun trackScreened(double screen_mass)
+/// (two stages while tracking) with the given screen_mass and the colour histogram's preview_samples.
+ScreenedRun trackScreened(double screen_mass, int preview_samples = 5)
 {
   Scene scene("pendulum_uncluttered.yaml");
   auto grey = cue<ScoreCounting>("template");
+  auto colour = std::make_shared<ColourCounting>();
+  Parameters colour_parameters;
+  colour_parameters.set("preview_samples", preview_samples);
+  colour->initialize("colour", colour_parameters);
   EngineConfig config;
   config.screen_mass = screen_mass;
-  FilterEngine engine(position3D(),
-                      { cue<ColourHSI>("colour"), grey, cue<ColourContour>("colour_contour"), cue<StereoMatch>("stereo") },
+  FilterEngine engine(position3D(), { colour, grey, cue<ColourContour>("colour_contour"), cue<StereoMatch>("stereo") },
                       config);
   std::string error;
   EXPECT_TRUE(engine.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
@@ -762,6 +786,8 @@ ScreenedRun trackScreened(double screen_mass)
   }
   run.rms = std::sqrt(sum2 / frames);
   run.scored = grey->scored;
+  run.colour_scored = colour->scored;
+  run.previewed = colour->previewed;
   return run;
 }
 }  // namespace
@@ -769,9 +795,10 @@ ScreenedRun trackScreened(double screen_mass)
 TEST(EngineScreening, TheCuesAfterTheFirstWeighOnlyTheParticlesItFindsWorthIt)
 {
   // screen_mass 1 weighs every particle with every cue; the default leaves out those that carry the last 0.1 % of
-  // the colour histogram's (tempered) weight, in the first stage, and of the outline's in the refining one.
+  // the colour histogram's (tempered) weight, in the first stage, and of the outline's in the refining one (here
+  // the histogram's own evaluation, its preview off; the next test has it on).
   const ScreenedRun every = trackScreened(1.0);
-  const ScreenedRun screened = trackScreened(EngineConfig().screen_mass);
+  const ScreenedRun screened = trackScreened(EngineConfig().screen_mass, 0);
   std::printf("template scored %ld hypotheses screened, %ld not; %ld particles screened out; RMS %.2f / %.2f cm\n",
               screened.scored, every.scored, screened.screened, 100.0 * screened.rms, 100.0 * every.rms);
   EXPECT_EQ(every.screened, 0);
@@ -779,6 +806,23 @@ TEST(EngineScreening, TheCuesAfterTheFirstWeighOnlyTheParticlesItFindsWorthIt)
   EXPECT_LT(screened.scored, every.scored * 3 / 4);  // at least a quarter of its work saved
   EXPECT_LT(screened.rms, 0.01);
   EXPECT_LT(screened.rms, every.rms + 0.002);
+}
+
+TEST(EngineScreening, TheColourPreviewChoosesTheParticlesTheHistogramWeighsInFull)
+{
+  // With its preview (the default), the colour histogram scores in full only the particles its coarser window and
+  // ring find worth it; without (preview_samples 0), every one, and the cues after it the ones it chose.
+  const ScreenedRun full = trackScreened(EngineConfig().screen_mass, 0);
+  const ScreenedRun previewed = trackScreened(EngineConfig().screen_mass);
+  std::printf("colour scored %ld hypotheses in full after %ld previews, %ld without; template %ld / %ld; RMS %.2f / "
+              "%.2f cm\n",
+              previewed.colour_scored, previewed.previewed, full.colour_scored, previewed.scored, full.scored,
+              100.0 * previewed.rms, 100.0 * full.rms);
+  EXPECT_EQ(full.previewed, 0);
+  EXPECT_GT(previewed.previewed, 0);
+  EXPECT_LT(previewed.colour_scored, full.colour_scored / 2);  // half of the full scoring saved at least
+  EXPECT_LT(previewed.rms, 0.01);
+  EXPECT_LT(previewed.rms, full.rms + 0.002);
 }
 
 TEST(EngineRecovery, NoJumpIsFasterThanMaxJumpSpeed)

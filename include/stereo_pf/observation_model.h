@@ -42,8 +42,9 @@ public:
   /// (any constant offset is irrelevant) and a similarity in [0, 1] into `similarity[i]` (1 = looks
   /// exactly like the target; used for the track state). Invalid hypotheses must get a finite low
   /// log-likelihood and similarity 0. Both outputs have hyp.size() entries. While tracking, the cues after a
-  /// stage's first also see the particles that one found negligible marked invalid (EngineConfig::screen_mass):
-  /// skipping invalid hypotheses before any per-pixel work is what makes the screening save time.
+  /// stage's first also see the particles that one found negligible marked invalid (EngineConfig::screen_mass;
+  /// with the first's preview(), the first too): skipping invalid hypotheses before any per-pixel work is what
+  /// makes the screening save time.
   /// hyp.radius <= 0 (or not finite) marks a 2D hypothesis without a size (the stereo-constraints model): use a
   /// fixed window of the cue's own. Called several times per frame (per set and view, per stage, and on samples
   /// beside the best particle): keep no state between calls. The best particle's mean similarity over the
@@ -51,6 +52,16 @@ public:
   /// lost_similarity, background_margin).
   virtual void evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
                         Eigen::Ref<Eigen::VectorXd> similarity) = 0;
+
+  /// Optional: a cheaper, coarser evaluate() (same arguments and log-likelihood scale, no similarity) that the
+  /// engine uses, while tracking, to choose the particles worth a full evaluation when this model is a stage's
+  /// first (EngineConfig::screen_mass). Return false (the default) when the model has none: its evaluate() then
+  /// does the choosing.
+  virtual bool preview(FeatureCache& /*cache*/, const ImageHypotheses& /*hyp*/,
+                       Eigen::Ref<Eigen::VectorXd> /*log_likelihood*/)
+  {
+    return false;
+  }
 
   /// Optional: true for a model that scores a hypothesis by comparing its left and right images with each
   /// other (stereo matching) instead of comparing each image with the target. The engine then calls

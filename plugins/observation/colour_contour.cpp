@@ -53,6 +53,13 @@ ColourContour::Tunables ColourContour::readTunables() const
   t.sigma = p.getDouble("sigma", 0.05, 0.001, 10.0,
                         "log-likelihood -m / (2 sigma^2), m: mean squared difference from the soft step");
   t.lines = p.getInt("lines", 16, 4, 256, "radial lines across the outline");
+  t.preview_lines = p.getInt("preview_lines", t.preview_lines, 0, 256,
+                             "lines of the cheap preview the engine screens particles by while tracking, at most "
+                             "`lines` (0: no preview, the full outline screens)");
+  if (t.preview_lines != 0 && t.preview_lines < 4)
+    throw ParameterError("parameter '" + scoped(p, "preview_lines") + "' = " + std::to_string(t.preview_lines) +
+                         " (allowed: 0 = no preview, or 4..256)");
+  t.preview_lines = std::min(t.preview_lines, t.lines);
   t.line_half_length = p.getInt("line_half_length", 2, 1, 10, "px (pixel steps) on each side of the outline");
   t.softness = p.getDouble("softness", 0.7, 0.1, 10.0, "px; width of the expected step 1 / (1 + exp(d / softness))");
   t.target_margin = p.getDouble("target_margin", 0.15, 0.0, 0.45,
@@ -77,37 +84,6 @@ void ColourContour::applyTunables(const Tunables& t)
 {
   tunables_ = t;
   const int half = t.line_half_length;
-  samples_per_line_ = 2 * half + 1;
-  const size_t samples = static_cast<size_t>(t.lines) * samples_per_line_;
-  const int padded = (t.lines + kLines4 - 1) / kLines4 * kLines4;
-  line_c_.assign(padded, 1.0f);
-  line_s_.assign(padded, 0.0f);
-  dx_.resize(samples);
-  dy_.resize(samples);
-  along_.resize(samples);
-  along_scaled_.resize(samples);
-  base_x_.resize(padded);
-  base_y_.resize(padded);
-  base_.resize(padded);
-  origin_.resize(padded);
-  reach_ = 0;
-  for (int k = 0; k < t.lines; ++k)
-  {
-    const double angle = 2.0 * M_PI * k / t.lines;
-    const double c = std::cos(angle), s = std::sin(angle);
-    line_c_[k] = static_cast<float>(c);
-    line_s_[k] = static_cast<float>(s);
-    for (int j = 0; j < samples_per_line_; ++j)
-    {
-      const size_t i = static_cast<size_t>(k) * samples_per_line_ + j;
-      digitalLineStep(c, s, j - half, dx_[i], dy_[i]);
-      along_[i] = static_cast<float>(dx_[i] * c + dy_[i] * s);
-      along_scaled_[i] = along_[i] * kStepsPerPixel;
-      reach_ = std::max(reach_, std::max(std::abs(dx_[i]), std::abs(dy_[i])));
-    }
-  }
-  offsets_step_ = 0;  // rebuilt for the image's row step at the next evaluation
-
   // The soft step by signed distance, over every distance a sample can have: its position along the line
   // (at most sqrt(2) + 0.36 px per step) plus the base pixel's rounding offset (at most 0.71 px).
   const float max_distance = static_cast<float>(half) * 1.8f + 1.0f;
@@ -118,25 +94,63 @@ void ColourContour::applyTunables(const Tunables& t)
     const double d = (i - entries / 2) / kStepsPerPixel;
     expected_[i] = static_cast<float>(1.0 / (1.0 + std::exp(d / t.softness)));
   }
-  // m on plain background (P = 0): the mean squared step over the pattern, for a base pixel on the outline.
-  double sum = 0.0;
-  for (const float d : along_)
-  {
-    const double e = 1.0 / (1.0 + std::exp(d / t.softness));
-    sum += e * e;
-  }
-  background_mismatch_ = static_cast<float>(sum / along_.size());
+  full_.build(t.lines, half, t.softness);
+  preview_.build(std::max(t.preview_lines, 1), half, t.softness);
+  const int padded = (std::max(t.lines, t.preview_lines) + kLines4 - 1) / kLines4 * kLines4;
+  base_x_.resize(padded);
+  base_y_.resize(padded);
+  base_.resize(padded);
+  origin_.resize(padded);
   // An unobservable hypothesis scores like background: no evidence either way.
-  invalid_log_likelihood_ = -background_mismatch_ / (2.0 * t.sigma * t.sigma);
+  invalid_log_likelihood_ = -full_.background_mismatch / (2.0 * t.sigma * t.sigma);
   buildTable();  // intensity_tolerance may have changed
 }
 
-void ColourContour::buildOffsets(size_t step)
+void ColourContour::Pattern::build(int line_count, int half, double softness)
 {
-  offsets_.resize(dx_.size());
-  for (size_t i = 0; i < dx_.size(); ++i)
-    offsets_[i] = static_cast<std::ptrdiff_t>(dy_[i]) * static_cast<std::ptrdiff_t>(step) + dx_[i];
-  offsets_step_ = step;
+  lines = line_count;
+  samples_per_line = 2 * half + 1;
+  const size_t samples = static_cast<size_t>(lines) * samples_per_line;
+  const int padded = (lines + kLines4 - 1) / kLines4 * kLines4;
+  line_c.assign(padded, 1.0f);
+  line_s.assign(padded, 0.0f);
+  dx.resize(samples);
+  dy.resize(samples);
+  along.resize(samples);
+  along_scaled.resize(samples);
+  reach = 0;
+  for (int k = 0; k < lines; ++k)
+  {
+    const double angle = 2.0 * M_PI * k / lines;
+    const double c = std::cos(angle), s = std::sin(angle);
+    line_c[k] = static_cast<float>(c);
+    line_s[k] = static_cast<float>(s);
+    for (int j = 0; j < samples_per_line; ++j)
+    {
+      const size_t i = static_cast<size_t>(k) * samples_per_line + j;
+      digitalLineStep(c, s, j - half, dx[i], dy[i]);
+      along[i] = static_cast<float>(dx[i] * c + dy[i] * s);
+      along_scaled[i] = along[i] * kStepsPerPixel;
+      reach = std::max(reach, std::max(std::abs(dx[i]), std::abs(dy[i])));
+    }
+  }
+  offsets_step = 0;  // rebuilt for the image's row step at the next evaluation
+  // m on plain background (P = 0): the mean squared step over the pattern, for a base pixel on the outline.
+  double sum = 0.0;
+  for (const float d : along)
+  {
+    const double e = 1.0 / (1.0 + std::exp(d / softness));
+    sum += e * e;
+  }
+  background_mismatch = static_cast<float>(sum / along.size());
+}
+
+void ColourContour::Pattern::buildOffsets(size_t step)
+{
+  offsets.resize(dx.size());
+  for (size_t i = 0; i < dx.size(); ++i)
+    offsets[i] = static_cast<std::ptrdiff_t>(dy[i]) * static_cast<std::ptrdiff_t>(step) + dx[i];
+  offsets_step = step;
 }
 
 void ColourContour::reconfigure()
@@ -273,12 +287,12 @@ float insideSum(const uint8_t* fg, const std::ptrdiff_t* base, const float* orig
 }
 }  // namespace
 
-float ColourContour::score(const uint8_t* fg, size_t step, int width, int height, const Outline& o)
+float ColourContour::score(Pattern& pattern, const uint8_t* fg, size_t step, int width, int height, const Outline& o)
 {
-  if (step != offsets_step_)
-    buildOffsets(step);
-  const int lines = tunables_.lines;
-  const int m = samples_per_line_;
+  if (step != pattern.offsets_step)
+    pattern.buildOffsets(step);
+  const int lines = pattern.lines;
+  const int m = pattern.samples_per_line;
   const float ab = o.a * o.b, a2 = o.a * o.a, b2 = o.b * o.b;
   const bool circle = o.a == o.b;
   const std::ptrdiff_t stride = static_cast<std::ptrdiff_t>(step);
@@ -301,7 +315,7 @@ float ColourContour::score(const uint8_t* fg, size_t step, int width, int height
     const cv::v_float32x4 v_steps = cv::v_setall_f32(kStepsPerPixel), v_centre = cv::v_setall_f32(centre + 0.5f);
     for (int k = 0; k < lines; k += kLines4)
     {
-      const cv::v_float32x4 c = cv::v_load(line_c_.data() + k), sn = cv::v_load(line_s_.data() + k);
+      const cv::v_float32x4 c = cv::v_load(pattern.line_c.data() + k), sn = cv::v_load(pattern.line_s.data() + k);
       cv::v_float32x4 rho = v_a;
       if (!circle)
       {
@@ -320,13 +334,13 @@ float ColourContour::score(const uint8_t* fg, size_t step, int width, int height
   for (int k = 0; k < lines; ++k)
     base[k] = static_cast<std::ptrdiff_t>(base_y[k]) * stride + base_x[k];
   const int last = static_cast<int>(expected_.size()) - 1;
-  const float extent = std::max(o.a, o.b) + static_cast<float>(reach_) + 1.0f;
+  const float extent = std::max(o.a, o.b) + static_cast<float>(pattern.reach) + 1.0f;
   if (o.cu - extent >= 0.0f && o.cu + extent <= static_cast<float>(width - 1) && o.cv - extent >= 0.0f &&
       o.cv + extent <= static_cast<float>(height - 1))
   {
     // Every sample inside (the usual case).
-    const std::ptrdiff_t* off = offsets_.data();
-    const float* al = along_scaled_.data();
+    const std::ptrdiff_t* off = pattern.offsets.data();
+    const float* al = pattern.along_scaled.data();
     const float* ex = expected_.data();
     float sum;
     switch (m)
@@ -360,11 +374,11 @@ float ColourContour::score(const uint8_t* fg, size_t step, int width, int height
     for (int j = 0; j < m; ++j)
     {
       const size_t i = static_cast<size_t>(k) * m + j;
-      const int x = base_x[k] + dx_[i], y = base_y[k] + dy_[i];
+      const int x = base_x[k] + pattern.dx[i], y = base_y[k] + pattern.dy[i];
       if (x < 0 || x >= width || y < 0 || y >= height)
         continue;
-      const int t = std::min(std::max(static_cast<int>(along_scaled_[i] + origin[k]), 0), last);
-      const float diff = static_cast<float>(fg[base[k] + offsets_[i]]) * kScale - expected_[t];
+      const int t = std::min(std::max(static_cast<int>(pattern.along_scaled[i] + origin[k]), 0), last);
+      const float diff = static_cast<float>(fg[base[k] + pattern.offsets[i]]) * kScale - expected_[t];
       sum += diff * diff;
       ++inside;
     }
@@ -376,10 +390,27 @@ float ColourContour::score(const uint8_t* fg, size_t step, int width, int height
 void ColourContour::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
                              Eigen::Ref<Eigen::VectorXd> similarity)
 {
+  judge(cache, hyp, full_, log_likelihood, similarity, "evaluate");
+}
+
+bool ColourContour::preview(FeatureCache& cache, const ImageHypotheses& hyp,
+                            Eigen::Ref<Eigen::VectorXd> log_likelihood)
+{
+  if (tunables_.preview_lines <= 0)
+    return false;
+  preview_similarity_.resize(hyp.size());
+  judge(cache, hyp, preview_, log_likelihood, preview_similarity_, "preview");
+  return true;
+}
+
+void ColourContour::judge(FeatureCache& cache, const ImageHypotheses& hyp, Pattern& pattern,
+                          Eigen::Ref<Eigen::VectorXd> log_likelihood, Eigen::Ref<Eigen::VectorXd> similarity,
+                          const char* what)
+{
   const int n = hyp.size();
   if (log_likelihood.size() != n || similarity.size() != n || static_cast<int>(hyp.v.size()) != n ||
       static_cast<int>(hyp.radius.size()) != n || static_cast<int>(hyp.valid.size()) != n)
-    throw std::invalid_argument(name() + ": evaluate: hypothesis arrays and outputs must all have " +
+    throw std::invalid_argument(name() + ": " + what + ": hypothesis arrays and outputs must all have " +
                                 std::to_string(n) + " entries");
   log_likelihood.setConstant(invalid_log_likelihood_);
   similarity.setZero();
@@ -402,7 +433,7 @@ void ColourContour::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Ei
       o.a = 0.0f;
       continue;
     }
-    const float extent = std::max(o.a, o.b) + static_cast<float>(reach_) + 1.0f;
+    const float extent = std::max(o.a, o.b) + static_cast<float>(pattern.reach) + 1.0f;
     left = std::min(left, o.cu - extent);
     right = std::max(right, o.cu + extent);
     top = std::min(top, o.cv - extent);
@@ -411,13 +442,13 @@ void ColourContour::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Ei
   const cv::Mat& fg = foregroundMap(cache, hyp.view, spanRegion(left, right, top, bottom, width, height));
 
   const double inv_two_sigma2 = 1.0 / (2.0 * tunables_.sigma * tunables_.sigma);
-  const double inv_background = 1.0 / background_mismatch_;
+  const double inv_background = 1.0 / pattern.background_mismatch;
   for (int i = 0; i < n; ++i)
   {
     const Outline& o = outlines_[static_cast<size_t>(i)];
     if (!(o.a > 0.0f))
       continue;
-    const float mis = score(fg.data, fg.step[0], width, height, o);
+    const float mis = score(pattern, fg.data, fg.step[0], width, height, o);
     if (std::isnan(mis))
       continue;
     log_likelihood[i] = -mis * inv_two_sigma2;
@@ -441,10 +472,10 @@ double ColourContour::mismatch(FeatureCache& cache, View view, float u, float v,
   if (!outline(hyp, 0, static_cast<float>(g.fx()), static_cast<float>(g.cx()), static_cast<float>(g.cy()), o))
     return std::numeric_limits<double>::quiet_NaN();
   const cv::Mat& image = cache.image(view);
-  const float extent = std::max(o.a, o.b) + static_cast<float>(reach_) + 1.0f;
+  const float extent = std::max(o.a, o.b) + static_cast<float>(full_.reach) + 1.0f;
   const cv::Mat& fg = foregroundMap(
       cache, view, spanRegion(o.cu - extent, o.cu + extent, o.cv - extent, o.cv + extent, image.cols, image.rows));
-  return score(fg.data, fg.step[0], image.cols, image.rows, o);
+  return score(full_, fg.data, fg.step[0], image.cols, image.rows, o);
 }
 
 void ColourContour::saveTarget(cv::FileStorage& fs) const

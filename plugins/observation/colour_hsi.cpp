@@ -9,6 +9,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include <opencv2/imgproc.hpp>
 #include <pluginlib/class_list_macros.hpp>
 
 namespace stereo_pf
@@ -54,6 +55,15 @@ ColourHSI::Tunables ColourHSI::readTunables() const
   t.surround_samples = p.getInt("surround_samples", 32, 4, 256, "points sampled on that ring");
   t.surround_weight = p.getDouble("surround_weight", 1.0, 0.0, 10.0,
                                   "weight of the ring's similarity to the target against the hypothesis");
+  t.preview_samples = p.getInt("preview_samples", t.preview_samples, 0, 31,
+                               "samples per window side of the cheap preview the engine screens particles by while "
+                               "tracking, at most `samples` (and as many ring points as the grid has on its "
+                               "border; 0: no preview)");
+  if (t.preview_samples != 0 && t.preview_samples < 3)
+    throw ParameterError("parameter '" + (p.prefix().empty() ? std::string() : p.prefix() + "/") +
+                         "preview_samples' = " + std::to_string(t.preview_samples) +
+                         " (allowed: 0 = no preview, or 3..31)");
+  t.preview_samples = std::min(t.preview_samples, t.samples);
   t.adapt_rate = p.getDouble("adapt_rate", t.adapt_rate, 0.0, 1.0,
                              "while tracked and seen, the target histogram follows the object by this much per frame "
                              "(0: never)");
@@ -77,18 +87,25 @@ void ColourHSI::applyTunables(const Tunables& t)
   // no evidence either way, rather than being punished below the background.
   invalid_log_likelihood_ = bhattacharyyaLogLikelihood(0.0, t.sigma);
   // A fixed grid in [-1, 1]^2, scaled by the window half-size per hypothesis: constant cost per hypothesis.
-  window_.reset(t.samples);
+  full_.reset(t.samples, t.surround_samples);
+  // The preview's ring has as many points as its grid's border.
+  preview_.reset(std::max(t.preview_samples, 1), 4 * std::max(t.preview_samples - 1, 1));
   candidate_.reset(binning_.bins(), t.samples * t.samples);
   ring_.reset(binning_.bins(), t.surround_samples);
-  ring_cos_.resize(t.surround_samples);
   ring_values_.resize(t.surround_samples);
   grid_values_.resize(static_cast<size_t>(t.samples) * t.samples);
-  ring_sin_.resize(t.surround_samples);
-  for (int k = 0; k < t.surround_samples; ++k)
+}
+
+void ColourHSI::Sampling::reset(int samples, int ring_samples)
+{
+  window.reset(samples);
+  ring_cos.resize(ring_samples);
+  ring_sin.resize(ring_samples);
+  for (int k = 0; k < ring_samples; ++k)
   {
-    const double a = 2.0 * M_PI * k / t.surround_samples;
-    ring_cos_[k] = static_cast<float>(std::cos(a));
-    ring_sin_[k] = static_cast<float>(std::sin(a));
+    const double a = 2.0 * M_PI * k / ring_samples;
+    ring_cos[k] = static_cast<float>(std::cos(a));
+    ring_sin[k] = static_cast<float>(std::sin(a));
   }
 }
 
@@ -212,10 +229,26 @@ void ColourHSI::adapt(FeatureCache& cache, const ImageHypotheses& estimate)
 void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
                          Eigen::Ref<Eigen::VectorXd> similarity)
 {
+  judge(cache, hyp, full_, log_likelihood, similarity, "evaluate");
+}
+
+bool ColourHSI::preview(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood)
+{
+  if (tunables_.preview_samples <= 0)
+    return false;
+  preview_similarity_.resize(hyp.size());
+  judge(cache, hyp, preview_, log_likelihood, preview_similarity_, "preview");
+  return true;
+}
+
+void ColourHSI::judge(FeatureCache& cache, const ImageHypotheses& hyp, Sampling& sampling,
+                      Eigen::Ref<Eigen::VectorXd> log_likelihood, Eigen::Ref<Eigen::VectorXd> similarity,
+                      const char* what)
+{
   const int n = hyp.size();
   if (log_likelihood.size() != n || similarity.size() != n || static_cast<int>(hyp.v.size()) != n ||
       static_cast<int>(hyp.radius.size()) != n || static_cast<int>(hyp.valid.size()) != n)
-    throw std::invalid_argument(name() + ": evaluate: hypothesis arrays and outputs must all have " +
+    throw std::invalid_argument(name() + ": " + what + ": hypothesis arrays and outputs must all have " +
                                 std::to_string(n) + " entries");
   log_likelihood.setConstant(invalid_log_likelihood_);
   similarity.setZero();
@@ -225,7 +258,10 @@ void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen:
   const cv::Mat& image = cache.image(hyp.view);
   const int width = image.cols;
   const int height = image.rows;
-  const int s = tunables_.samples;
+  WindowGrid& window = sampling.window;
+  const float* ring_cos = sampling.ring_cos.data();
+  const float* ring_sin = sampling.ring_sin.data();
+  const int s = window.samples();
   const int min_inside = (s * s + kMinInsideDenominator - 1) / kMinInsideDenominator;
   const float fixed_half = 0.5f * static_cast<float>(tunables_.window - 1);
   const float scale = static_cast<float>(tunables_.window_scale);
@@ -235,7 +271,7 @@ void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen:
   const double inv_two_sigma2 = 1.0 / (2.0 * tunables_.sigma * tunables_.sigma);
   const float surround = static_cast<float>(tunables_.surround_scale);
   const double surround_weight = tunables_.surround_weight;
-  const int ring_n = tunables_.surround_samples;
+  const int ring_n = static_cast<int>(sampling.ring_cos.size());
   const float margin = static_cast<float>(tunables_.surround_margin);
   // Window half-size and ring radius of hypothesis i (ring 0: no ring).
   auto extent = [&](int i, float& half, float& ring) {
@@ -274,7 +310,7 @@ void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen:
     const float v = hyp.v[i];
     float half, ring_radius;
     extent(i, half, ring_radius);
-    if (!window_.place(u, v, half, width, height, min_inside))
+    if (!window.place(u, v, half, width, height, min_inside))
       continue;
 
     if (sparse)
@@ -282,14 +318,14 @@ void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen:
       // In the order addGrid() reads them: the same histogram, summed in the same order.
       uint8_t* values = grid_values_.data();
       int m = 0;
-      for (int j = 0; j < window_.numRows(); ++j)
-        for (int k = 0; k < window_.numCols(); ++k)
-          values[m++] = pixels.at(window_.cols()[k], window_.rows()[j]);
+      for (int j = 0; j < window.numRows(); ++j)
+        for (int k = 0; k < window.numCols(); ++k)
+          values[m++] = pixels.at(window.cols()[k], window.rows()[j]);
       candidate_.addValues(values, m);
     }
     else
-      candidate_.addGrid(bins->data, bins->step[0], window_.rows(), window_.numRows(), window_.cols(),
-                         window_.numCols());
+      candidate_.addGrid(bins->data, bins->step[0], window.rows(), window.numRows(), window.cols(),
+                         window.numCols());
     const double rho = score(candidate_);
     double penalty = 0.0;
     if (ring_radius > 0.0f)
@@ -300,8 +336,8 @@ void ColourHSI::evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen:
       int m = 0;
       for (int k = 0; k < ring_n; ++k)
       {
-        const int x = cvRound(u + ring_radius * ring_cos_[k]);
-        const int y = cvRound(v + ring_radius * ring_sin_[k]);
+        const int x = cvRound(u + ring_radius * ring_cos[k]);
+        const int y = cvRound(v + ring_radius * ring_sin[k]);
         if (x >= 0 && x < width && y >= 0 && y < height)
           values[m++] = binAt(x, y);
       }
@@ -317,7 +353,17 @@ bool ColourHSI::targetMap(FeatureCache& cache, View view, cv::Mat& map)
 {
   if (!target_.valid())
     return false;
-  const cv::Mat& bins = binImage(cache, view);
+  if (!binner_)
+    throw std::logic_error("ColourHSI: used before initialize()");
+  // At half the image's resolution, every other pixel of every other row: the engine averages the map over cells
+  // of 4x4 pixels, and binning the whole of both images every frame for it was a tenth of a default step.
+  const double gain = cache.gain(view);
+  const cv::Mat& bins = cache.get(view, cache_key_ + "/half", [this, gain](const cv::Mat& image, cv::Mat& out) {
+    cv::Mat half;
+    cv::resize(image, half, cv::Size(std::max(1, image.cols / 2), std::max(1, image.rows / 2)), 0, 0,
+               cv::INTER_NEAREST);
+    binner_->binImage(half, out, gain);
+  });
   const std::string key = cache_key_ + "/backprojection/" + std::to_string(reinterpret_cast<uintptr_t>(this));
   map = cache.get(view, key, [this, &bins](const cv::Mat&, cv::Mat& out) {
     // A 256-entry table from bin to scaled target probability, applied with OpenCV's LUT.

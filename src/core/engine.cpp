@@ -1391,13 +1391,36 @@ double FilterEngine::observe(const StereoGeometry& geometry, int s, Take take, c
       continue;  // scores the agreement of a particle's two images: only for sets seen in both
     plan.emplace_back(k, use);
   }
-  const bool screening = screen && plan.size() >= 2 && config_.screen_mass < 1.0;
+  const bool screening = screen && !plan.empty() && config_.screen_mass < 1.0;
   int screened = 0;
   double cues = 0.0;
+  // The first model's preview, when it has one, chooses the particles every model then weighs (itself included);
+  // without one, its own evaluation chooses them for the models after it.
+  size_t screen_step = 1;
+  if (screening && !observation_models_[plan[0].first]->comparesViews())
+  {
+    ObservationModel& m = *observation_models_[plan[0].first];
+    const double weight = plan[0].second.weight * m.weight() * cue_trust_[plan[0].first];
+    preview_log_weights_ = p.log_weights;
+    bool previewed = !hypotheses_[s].empty();
+    for (const ImageHypotheses& hyp : hypotheses_[s])
+    {
+      scratch_ll_.resize(p.size());
+      previewed = m.preview(cache_, hyp, scratch_ll_);
+      if (!previewed)
+        break;
+      preview_log_weights_ += weight * scratch_ll_;
+    }
+    if (previewed)
+    {
+      screened = screenOut(s, *screen, preview_log_weights_);
+      screen_step = plan.size();  // chosen already
+    }
+  }
   for (size_t step = 0; step < plan.size(); ++step)
   {
-    if (screening && step == 1)
-      screened = screenAfterFirst(s, *screen);
+    if (screening && step == screen_step)
+      screened = screenOut(s, *screen, p.log_weights);
     const size_t k = plan[step].first;
     ObservationModel* model = observation_models_[k].get();
     const bool evidence = plan[step].second.evidence;
@@ -1444,21 +1467,21 @@ double FilterEngine::observe(const StereoGeometry& geometry, int s, Take take, c
   return cues;
 }
 
-int FilterEngine::screenAfterFirst(int s, const Screen& screen)
+int FilterEngine::screenOut(int s, const Screen& screen, const Eigen::VectorXd& log_weights)
 {
   ParticleSet& p = sets_[s];
   const int n = p.size();
   screened_.assign(n, 0);
-  if (!screen.prior || screen.prior->size() != n)
+  if (!screen.prior || screen.prior->size() != n || log_weights.size() != n)
     return 0;
   const Eigen::VectorXd& prior = *screen.prior;
-  const double beta = temperingPower(prior, p.log_weights, screen.min_ess);
+  const double beta = temperingPower(prior, log_weights, screen.min_ess);
   screen_order_.clear();
   double top = -std::numeric_limits<double>::infinity();
   for (int i = 0; i < n; ++i)
-    if (std::isfinite(prior[i]) && std::isfinite(p.log_weights[i]))
+    if (std::isfinite(prior[i]) && std::isfinite(log_weights[i]))
     {
-      const double t = prior[i] + beta * (p.log_weights[i] - prior[i]);
+      const double t = prior[i] + beta * (log_weights[i] - prior[i]);
       screen_order_.emplace_back(t, i);
       top = std::max(top, t);
     }
@@ -1467,16 +1490,21 @@ int FilterEngine::screenAfterFirst(int s, const Screen& screen)
   double total = 0.0;
   for (std::pair<double, int>& e : screen_order_)
     total += (e.first = std::exp(e.first - top));
-  std::sort(screen_order_.begin(), screen_order_.end(),
-            [](const std::pair<double, int>& a, const std::pair<double, int>& b) {
-              return a.first > b.first || (a.first == b.first && a.second < b.second);
-            });
-  // The best particles up to screen_mass of the total stay; so do the ties of the last one kept.
+  // The best particles up to screen_mass of the total stay; so do the ties of the last one kept. None below
+  // (1 - screen_mass) / m of the total can be among them (the m particles' lightest ones together carry less
+  // than what is left out), so only the others are sorted (while tracking, the light ones are most of the set).
+  const double bound = (1.0 - config_.screen_mass) * total / static_cast<double>(screen_order_.size());
+  const auto light = std::partition(screen_order_.begin(), screen_order_.end(),
+                                    [bound](const std::pair<double, int>& e) { return e.first >= bound; });
+  std::sort(screen_order_.begin(), light, [](const std::pair<double, int>& a, const std::pair<double, int>& b) {
+    return a.first > b.first || (a.first == b.first && a.second < b.second);
+  });
+  const size_t heavy = static_cast<size_t>(light - screen_order_.begin());
   double carried = 0.0;
   size_t kept = 0;
-  while (kept < screen_order_.size() && carried < config_.screen_mass * total)
+  while (kept < heavy && carried < config_.screen_mass * total)
     carried += screen_order_[kept++].first;
-  while (kept < screen_order_.size() && screen_order_[kept].first == screen_order_[kept - 1].first)
+  while (kept < heavy && screen_order_[kept].first == screen_order_[kept - 1].first)
     ++kept;
   int count = 0;
   for (size_t j = kept; j < screen_order_.size(); ++j)

@@ -482,7 +482,7 @@ private:
   /// says; returns the total trust of the per-view cue evaluations added to sum_sim_ (each added times its
   /// model's trust; comparesViews models: none).
   /// With `screen` (EngineConfig::screen_mass below 1), the models after the first weigh only the particles the
-  /// first leaves standing (screenAfterFirst()); the rest end at -inf and without evidence.
+  /// first leaves standing (screenOut()); the rest end at -inf and without evidence.
   struct Screen
   {
     const Eigen::VectorXd* prior = nullptr;  ///< the stage's prior log-weights, as tempering takes them
@@ -492,9 +492,9 @@ private:
   template <class Take>
   double observe(const StereoGeometry& geometry, int s, Take take, const Screen* screen = nullptr);
   /// Flags in screened_ the particles of set `s` outside the smallest group that carries screen_mass of the
-  /// weights its log-weights give, tempered to `screen`'s target, and marks their hypotheses invalid (saved in
+  /// weights `log_weights` give, tempered to `screen`'s target, and marks their hypotheses invalid (saved in
   /// screen_valid_, for observe() to restore). Returns how many it flagged.
-  int screenAfterFirst(int s, const Screen& screen);
+  int screenOut(int s, const Screen& screen, const Eigen::VectorXd& log_weights);
   /// Unflags the particles flagged in `flags` whose image in `h` (a set's first view) lies within two apparent
   /// radii of the unflagged particles' mean image: they landed on the track. Returns how many stay flagged.
   int awayFromTrack(const ImageHypotheses& h, std::vector<int>& flags) const;
@@ -622,9 +622,10 @@ private:
   Eigen::VectorXd scratch_ll_, scratch_sim_, sum_sim_, prior_log_, refine_prior_;
   int screened_count_ = 0;  ///< this frame's FrameResult::screened so far
   std::vector<int> screen_keep_;                        ///< particles a stage never screens out
+  Eigen::VectorXd preview_log_weights_;                ///< a set's log-weights with the first model's preview
   std::vector<char> screened_;                          ///< per particle: screened out in this stage
   std::vector<std::vector<unsigned char>> screen_valid_;  ///< each view's valid flags before screening
-  std::vector<std::pair<double, int>> screen_order_;   ///< (tempered log-weight, particle), best first
+  std::vector<std::pair<double, int>> screen_order_;   ///< (tempered weight, particle); the heavy ones best first
   ImageHypotheses background_hyp_, adapt_hyp_, adapt_right_hyp_;
   Eigen::VectorXd background_ll_, background_sim_, background_sum_;
   Eigen::VectorXd view_background_sum_[2];  ///< background_sum_ of each view alone

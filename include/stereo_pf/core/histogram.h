@@ -134,6 +134,8 @@ public:
   bool place(float u, float v, float half, int width, int height, int min_inside);
   const int* cols() const { return cols_.data(); }  ///< in-image sample columns of the last place()
   const int* rows() const { return rows_.data(); }  ///< in-image sample rows of the last place()
+  /// Grid points per axis (reset()'s `samples`).
+  int samples() const { return static_cast<int>(offsets_.size()); }
   int numCols() const { return nc_; }
   int numRows() const { return nr_; }
 

@@ -49,7 +49,7 @@ namespace stereo_pf
 ///
 /// Parameters (in the plugin's namespace): hue_bins, saturation_bins, intensity_bins, achromatic_saturation,
 /// achromatic_intensity (as ColourHSI; structural, read at initialisation only), sigma (0.05, 0.001..10),
-/// lines (16, 4..256), line_half_length (2 px, 1..10), softness (0.7 px, 0.1..10), target_margin
+/// lines (16, 4..256), preview_lines (8; 0 = none, else 4..lines), line_half_length (2 px, 1..10), softness (0.7 px, 0.1..10), target_margin
 /// (0.15, 0..0.45), radius (0 = learned; px, 0..2000), min_radius (2 px, 0.5..1000), perspective (true),
 /// intensity_tolerance (0: off, 0..1: P from both histograms spread along intensity, as ColourHSI's: a face of the
 /// target's colour in shade is still the target's, not a colour seen in neither histogram);
@@ -68,6 +68,8 @@ public:
   /// Log-likelihood and similarity of every hypothesis (see the class comment).
   void evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
                 Eigen::Ref<Eigen::VectorXd> similarity) override;
+  /// The log-likelihood of the outline on preview_lines lines, for screening; false when preview_lines is 0.
+  bool preview(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood) override;
   /// Write a map named name() with the binning, both histograms and the learned radius.
   void saveTarget(cv::FileStorage& fs) const override;
   /// Read what saveTarget wrote (`node`: that map, or a map holding it under name()). False with `error` set
@@ -109,6 +111,25 @@ private:
     double min_radius = 2.0;
     bool perspective = true;
     double intensity_tolerance = 0.0;
+    int preview_lines = 8;
+  };
+  /// The lines across the outline a hypothesis is sampled on, the same for every hypothesis.
+  struct Pattern
+  {
+    /// `line_count` lines evenly spread around, `half` pixel steps on each side of the outline.
+    void build(int line_count, int half, double softness);
+    /// Pixel offsets of the samples for an image of `step` bytes per row.
+    void buildOffsets(size_t step);
+    int lines = 0;
+    int samples_per_line = 0;            // 2 line_half_length + 1
+    std::vector<float> line_c, line_s;   // cos, sin of each line's angle (padded to whole vectors)
+    std::vector<int> dx, dy;             // [k * samples_per_line + j]: pixel offset of sample j of line k
+    std::vector<float> along;            // the same offset projected on the line's direction, px
+    std::vector<float> along_scaled;     // ... in soft-step table entries
+    std::vector<std::ptrdiff_t> offsets;  // dy * step + dx
+    size_t offsets_step = 0;              // step offsets was built for (0: not yet)
+    int reach = 0;                        // largest |dx|, |dy| of any sample, px
+    float background_mismatch = 0.0f;     // m on plain background (P = 0)
   };
   /// One hypothesis's outline: centre, radial unit vector and semi-axes (a circle: a = b, e = (1, 0)).
   struct Outline
@@ -123,10 +144,12 @@ private:
   void buildTable();
   /// The outline of a hypothesis; false when it has none (invalid, non-finite, no usable radius).
   bool outline(const ImageHypotheses& hyp, int i, float focal, float cx, float cy, Outline& o) const;
-  /// m for one outline on rows of the P map that cover it (NaN with fewer than half of the samples inside).
-  float score(const uint8_t* fg, size_t step, int width, int height, const Outline& o);
-  /// Pixel offsets of the line patterns for an image of `step` bytes per row.
-  void buildOffsets(size_t step);
+  /// m for one outline on rows of the P map that cover it, sampled on `pattern` (NaN with fewer than half of the
+  /// samples inside).
+  float score(Pattern& pattern, const uint8_t* fg, size_t step, int width, int height, const Outline& o);
+  /// evaluate() on the lines of `pattern` (`what` names the caller in errors).
+  void judge(FeatureCache& cache, const ImageHypotheses& hyp, Pattern& pattern,
+             Eigen::Ref<Eigen::VectorXd> log_likelihood, Eigen::Ref<Eigen::VectorXd> similarity, const char* what);
 
   HsiBinning binning_;
   std::unique_ptr<const HsiBinner> binner_;
@@ -135,17 +158,11 @@ private:
   std::vector<uint8_t> lut_;      // bin -> 255 P, 256 entries
   float learned_radius_ = 0.0f;
   long target_version_ = 0;       // the P map's cache tag (bumped when the target changes)
-  float background_mismatch_ = 0.0f;
   double invalid_log_likelihood_ = 0.0;
-  // The line patterns, the same for every hypothesis (sized in applyTunables).
-  int samples_per_line_ = 0;      // 2 line_half_length + 1
-  std::vector<float> line_c_, line_s_;   // cos, sin of each line's angle
-  std::vector<int> dx_, dy_;             // [k * samples_per_line_ + j]: pixel offset of sample j of line k
-  std::vector<float> along_;             // the same offset projected on the line's direction, px
-  std::vector<float> along_scaled_;      // ... in soft-step table entries
-  std::vector<std::ptrdiff_t> offsets_;  // dy * step + dx
-  size_t offsets_step_ = 0;              // step offsets_ was built for (0: not yet)
-  int reach_ = 0;                        // largest |dx|, |dy| of any sample, px
+  // The line patterns (built in applyTunables).
+  Pattern full_;     // evaluate()'s: `lines` lines
+  Pattern preview_;  // preview()'s: `preview_lines` lines
+  Eigen::VectorXd preview_similarity_;  // preview()'s similarities (not returned)
   std::vector<float> expected_;          // soft step by quantised distance (kStepsPerPixel per px)
   std::vector<Outline> outlines_;        // scratch: one per hypothesis of a batch
   std::vector<int> base_x_, base_y_;     // scratch: each line's base pixel (its outline point, rounded)

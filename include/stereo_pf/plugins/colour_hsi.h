@@ -83,6 +83,9 @@ public:
   /// hypothesis is treated as invalid.
   void evaluate(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood,
                 Eigen::Ref<Eigen::VectorXd> similarity) override;
+  /// The log-likelihood of a coarser window (preview_samples per side) and ring, for screening; false when
+  /// preview_samples is 0.
+  bool preview(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood) override;
   /// Back-projection of the target histogram: q[bin] / max q per pixel (CV_8UC1), once per frame per view.
   bool targetMap(FeatureCache& cache, View view, cv::Mat& map) override;
   /// Write a map named name() holding the binning and the target histogram (nothing without a target).
@@ -128,6 +131,7 @@ private:
     double adapt_min = 0.6;
     double anchor = 0.3;
     double intensity_tolerance = 0.0;
+    int preview_samples = 5;
   };
   /// A new target learned or loaded: adaptation starts afresh from it.
   void setLearned(TargetHistogram learned);
@@ -137,6 +141,16 @@ private:
   double relative(double rho) const;
   /// rho of a candidate or ring histogram (cleared) against the target, intensity_tolerance applied (relative()).
   double score(SparseHistogram& histogram) const;
+  /// Where a hypothesis is sampled: the window's grid and the ring's points on the unit circle.
+  struct Sampling
+  {
+    void reset(int samples, int ring_samples);
+    WindowGrid window;
+    std::vector<float> ring_cos, ring_sin;
+  };
+  /// evaluate() with the samples of `sampling` (`what` names the caller in errors).
+  void judge(FeatureCache& cache, const ImageHypotheses& hyp, Sampling& sampling,
+             Eigen::Ref<Eigen::VectorXd> log_likelihood, Eigen::Ref<Eigen::VectorXd> similarity, const char* what);
   Tunables readTunables() const;
   void applyTunables(const Tunables& t);
 
@@ -153,10 +167,11 @@ private:
   double scoring_scale_ = 1.0;
   double invalid_log_likelihood_ = 0.0;  // log-likelihood of rho = 0
   // scratch, sized in applyTunables: no allocation per hypothesis
-  WindowGrid window_;         // the sample grid, placed per hypothesis
+  Sampling full_;     // evaluate()'s: `samples` per side, `surround_samples` on the ring
+  Sampling preview_;  // preview()'s: `preview_samples` per side, as many on the ring as on the grid's border
+  Eigen::VectorXd preview_similarity_;  // preview()'s similarities (not returned)
   SparseHistogram candidate_;
   SparseHistogram ring_;          // the surround ring's histogram
-  std::vector<float> ring_cos_, ring_sin_;  // unit circle, `surround_samples` points
   std::vector<uint8_t> ring_values_;        // scratch: one hypothesis's ring bins
   std::vector<uint8_t> grid_values_;        // scratch: one hypothesis's window bins (evaluate()'s sparse path)
   float learned_radius_ = 0.0f;   // half the smaller side of the learning ROI: the 2D hypotheses' ring
