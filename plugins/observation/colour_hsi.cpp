@@ -334,13 +334,24 @@ void ColourHSI::judge(FeatureCache& cache, const ImageHypotheses& hyp, Sampling&
       // the previous count's store).
       uint8_t* values = ring_values_.data();
       int m = 0;
-      for (int k = 0; k < ring_n; ++k)
+      if (!sparse && u - ring_radius >= 0.0f && u + ring_radius <= static_cast<float>(width - 1) &&
+          v - ring_radius >= 0.0f && v + ring_radius <= static_cast<float>(height - 1))
       {
-        const int x = cvRound(u + ring_radius * ring_cos[k]);
-        const int y = cvRound(v + ring_radius * ring_sin[k]);
-        if (x >= 0 && x < width && y >= 0 && y < height)
-          values[m++] = binAt(x, y);
+        // The whole ring inside the image (the usual case): no test per point.
+        const uint8_t* data = bins->data;
+        const size_t row_step = bins->step[0];
+        for (; m < ring_n; ++m)
+          values[m] = data[static_cast<size_t>(cvRound(v + ring_radius * ring_sin[m])) * row_step +
+                           static_cast<size_t>(cvRound(u + ring_radius * ring_cos[m]))];
       }
+      else
+        for (int k = 0; k < ring_n; ++k)
+        {
+          const int x = cvRound(u + ring_radius * ring_cos[k]);
+          const int y = cvRound(v + ring_radius * ring_sin[k]);
+          if (x >= 0 && x < width && y >= 0 && y < height)
+            values[m++] = binAt(x, y);
+        }
       ring_.addValues(values, m);
       penalty = surround_weight * score(ring_);
     }
