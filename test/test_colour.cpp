@@ -681,7 +681,9 @@ TEST(ColourHSI, ThePreviewJudgesOnACoarserWindowAndRingOnTheSameScale)
   drawDisc(img, 120, 95, 20, kOrange, 4);
   FeatureCache cache;
   cache.reset(makeFrame(img, img));
-  auto m = makeModel();
+  Parameters five;
+  five.set("preview_samples", 5);
+  auto m = makeModel(five);
   std::string error;
   ASSERT_TRUE(m->learnTarget(cache, View::Left, discBox(120, 95, 20), error)) << error;
   ImageHypotheses hyp;

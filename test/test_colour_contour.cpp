@@ -190,15 +190,19 @@ TEST_F(OrangeBall, ThePreviewScoresOnHalfTheLinesOnTheSameScale)
   // The engine screens particles by the preview (8 of the 16 lines by default): about evaluate()'s log-likelihood at
   // the outline and on the wall, and as sharp (a hypothesis off by 2 px scores lower); none with preview_lines 0.
   const ImageHypotheses h = onTheRow({ kU, kU + 2.0f, 40.0f });
+  Parameters eight = with("perspective", "false");
+  eight.set("preview_lines", 8);
+  auto model = makeModel(eight);
+  std::string error;
+  ASSERT_TRUE(model->learnTarget(cache_, View::Left, boxOf(kU, kV, kRadius), error)) << error;
   Eigen::VectorXd ll(3), sim(3), coarse(3);
-  model_->evaluate(cache_, h, ll, sim);
-  ASSERT_TRUE(model_->preview(cache_, h, coarse));
+  model->evaluate(cache_, h, ll, sim);
+  ASSERT_TRUE(model->preview(cache_, h, coarse));
   EXPECT_GT(coarse[0], coarse[1]);
   EXPECT_GT(coarse[1], coarse[2]);
   for (const int i : { 0, 2 })
     EXPECT_NEAR(coarse[i], ll[i], 0.2 * std::abs(ll[2])) << i;
   auto off = makeModel(with("preview_lines", "0"));
-  std::string error;
   ASSERT_TRUE(off->learnTarget(cache_, View::Left, boxOf(kU, kV, kRadius), error)) << error;
   EXPECT_FALSE(off->preview(cache_, h, coarse));
   EXPECT_THROW(makeModel(with("preview_lines", "2")), ParameterError);

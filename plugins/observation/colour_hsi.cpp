@@ -9,7 +9,6 @@
 #include <sstream>
 #include <stdexcept>
 
-#include <opencv2/imgproc.hpp>
 #include <pluginlib/class_list_macros.hpp>
 
 namespace stereo_pf
@@ -364,17 +363,7 @@ bool ColourHSI::targetMap(FeatureCache& cache, View view, cv::Mat& map)
 {
   if (!target_.valid())
     return false;
-  if (!binner_)
-    throw std::logic_error("ColourHSI: used before initialize()");
-  // At half the image's resolution, every other pixel of every other row: the engine averages the map over cells
-  // of 4x4 pixels, and binning the whole of both images every frame for it was a tenth of a default step.
-  const double gain = cache.gain(view);
-  const cv::Mat& bins = cache.get(view, cache_key_ + "/half", [this, gain](const cv::Mat& image, cv::Mat& out) {
-    cv::Mat half;
-    cv::resize(image, half, cv::Size(std::max(1, image.cols / 2), std::max(1, image.rows / 2)), 0, 0,
-               cv::INTER_NEAREST);
-    binner_->binImage(half, out, gain);
-  });
+  const cv::Mat& bins = binImage(cache, view);
   const std::string key = cache_key_ + "/backprojection/" + std::to_string(reinterpret_cast<uintptr_t>(this));
   map = cache.get(view, key, [this, &bins](const cv::Mat&, cv::Mat& out) {
     // A 256-entry table from bin to scaled target probability, applied with OpenCV's LUT.

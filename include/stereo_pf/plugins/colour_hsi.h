@@ -51,8 +51,8 @@ namespace stereo_pf
 /// Parameters (in the plugin's namespace): hue_bins (8, 1..64), saturation_bins (8, 1..64),
 /// intensity_bins (4, 1..64) with product <= 256, achromatic_saturation (0.1, 0..1),
 /// achromatic_intensity (0.08, 0..1), sigma (0.15, 0.001..10), window (11, odd 3..101),
-/// window_scale (0.7, 0.1..3), samples (11, 3..31), min_radius (2 px, 0.5..100),
-/// target_margin (0.15, 0..0.45), surround_scale (1.25; 0 = off, else 1..4), surround_margin (3 px, 0..100),
+/// window_scale (0.7, 0.1..3), samples (11, 3..31), preview_samples (0 = none, else 3..31, at most samples),
+/// min_radius (2 px, 0.5..100), target_margin (0.15, 0..0.45), surround_scale (1.25; 0 = off, else 1..4), surround_margin (3 px, 0..100),
 /// surround_samples (32, 4..256), surround_weight (1.0, 0..10), adapt_rate (0.1; 0 = off, 0..1), adapt_min (0.6, 0..1),
 /// anchor (0.3, 0..1), intensity_tolerance (0: off, 0..1). The binning is structural (a learned target is tied to
 /// it) and is read at initialisation only; reconfigure() re-reads the others.
@@ -131,7 +131,7 @@ private:
     double adapt_min = 0.6;
     double anchor = 0.3;
     double intensity_tolerance = 0.0;
-    int preview_samples = 5;
+    int preview_samples = 0;
   };
   /// A new target learned or loaded: adaptation starts afresh from it.
   void setLearned(TargetHistogram learned);
