@@ -89,10 +89,14 @@ public:
   /// Optional: a map of how much each place looks like the target (CV_8UC1, 0..255) for the engine's
   /// detection-driven proposals (searching, lost, and the recovery search while tracking), e.g. a colour
   /// back-projection. It covers the whole image, at its size or at any lower resolution of about its aspect:
-  /// the engine resizes it to its grid of 4x4-pixel cells, so a map at a lower resolution (the template's is
-  /// matched on a shrunk image) costs less and proposes about the same. Compute it through `cache` so it is
-  /// made once per frame. Return false when the model has no such map (the default) or no target.
+  /// the engine resizes it to its grid of kTargetMapCell x kTargetMapCell-pixel cells, so a map at a lower resolution
+  /// (the template's is matched on a shrunk image; the colour histogram's is made on the cells) costs less and
+  /// proposes about the same. Compute it through `cache` so it is made once per frame. Return false when the model
+  /// has no such map (the default) or no target.
   virtual bool targetMap(FeatureCache& /*cache*/, View /*view*/, cv::Mat& /*map*/) { return false; }
+  /// Side of the cells targetMap()'s maps are brought to, pixels: a map of image.cols / kTargetMapCell x
+  /// image.rows / kTargetMapCell is used as it is.
+  static constexpr int kTargetMapCell = 4;
 
   /// Optional: follow the object's appearance. The engine calls this after each frame in which the tracked
   /// object was seen (Support::Seen while tracking), once per particle set and view, with `estimate` holding one

@@ -4,6 +4,7 @@
 #include "stereo_pf/plugins/colour_hsi.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <sstream>
@@ -363,16 +364,20 @@ bool ColourHSI::targetMap(FeatureCache& cache, View view, cv::Mat& map)
 {
   if (!target_.valid())
     return false;
-  const cv::Mat& bins = binImage(cache, view);
+  if (!binner_)
+    throw std::logic_error("ColourHSI: used before initialize()");
   const std::string key = cache_key_ + "/backprojection/" + std::to_string(reinterpret_cast<uintptr_t>(this));
-  map = cache.get(view, key, [this, &bins](const cv::Mat&, cv::Mat& out) {
-    // A 256-entry table from bin to scaled target probability, applied with OpenCV's LUT.
+  const double gain = cache.gain(view);
+  map = cache.get(view, key, [this, gain](const cv::Mat& image, cv::Mat& out) {
+    // Each bin's target probability, scaled to 255 at the most probable, averaged over the engine's cells in one
+    // pass over the image: the same map as binning the whole image and shrinking its back-projection by area, at
+    // a third of the cost (the full-resolution bins were needed by nothing else: the cues bin the regions they read).
     const std::vector<double>& q = scoring_.probabilities();
     const double q_max = *std::max_element(q.begin(), q.end());
-    cv::Mat lut(1, 256, CV_8U, cv::Scalar(0));
-    for (size_t b = 0; b < q.size(); ++b)
-      lut.at<uint8_t>(static_cast<int>(b)) = cv::saturate_cast<uint8_t>(255.0 * q[b] / q_max);
-    cv::LUT(bins, lut, out);
+    std::array<uint8_t, 256> weight{};
+    for (size_t b = 0; b < q.size() && b < weight.size(); ++b)
+      weight[b] = cv::saturate_cast<uint8_t>(255.0 * q[b] / q_max);
+    binner_->cellMeans(image, weight, kTargetMapCell, out, gain);
   }, target_version_);
   return true;
 }

@@ -21,6 +21,48 @@ inline int sliceOf(double x, int n)
   const int k = static_cast<int>(x * n);
   return k < 0 ? 0 : (k >= n ? n - 1 : k);
 }
+
+/// One row of `cols` pixels of `channels` (1, 3 or 4) channels at `p` to `o`: each pixel's bin (`lut` for colour,
+/// `grey` for grey levels), or with `Weighted` that bin's entry of `weight`.
+template <bool Weighted>
+void binRow(const uint8_t* p, int cols, int channels, const uint8_t* lut, const uint8_t* grey, const uint8_t* weight,
+            uint8_t* o)
+{
+  auto put = [weight](uint8_t bin) { return Weighted ? weight[bin] : bin; };
+  int x = 0;
+  if (channels == 1)
+  {
+    for (; x < cols; ++x)
+      o[x] = put(grey[p[x]]);
+    return;
+  }
+  if (channels == 4)
+  {
+    for (; x < cols; ++x, p += 4)
+      o[x] = put(lut[((p[0] >> 2) << 12) | ((p[1] >> 2) << 6) | (p[2] >> 2)]);
+    return;
+  }
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+  // The loop is bound by instruction count, not by the table read (measured: an all-black image is
+  // barely faster), so read 4 pixels with two 8-byte loads and build each index with 3 shifts/masks
+  // from a little-endian word b | g << 8 | r << 16. ~25% faster than byte-wise reads.
+  // The second load reads 2 bytes past the 4th pixel, so stop while one more pixel of this row follows.
+  auto index = [](uint32_t w) { return ((w & 0xFCu) << 10) | ((w >> 4) & 0xFC0u) | ((w >> 18) & 0x3Fu); };
+  for (; x + 4 < cols; x += 4, p += 12)
+  {
+    uint64_t a = 0;
+    uint64_t b = 0;
+    std::memcpy(&a, p, 8);
+    std::memcpy(&b, p + 6, 8);
+    o[x] = put(lut[index(static_cast<uint32_t>(a))]);
+    o[x + 1] = put(lut[index(static_cast<uint32_t>(a >> 24))]);
+    o[x + 2] = put(lut[index(static_cast<uint32_t>(b))]);
+    o[x + 3] = put(lut[index(static_cast<uint32_t>(b >> 24))]);
+  }
+#endif
+  for (; x < cols; ++x, p += 3)
+    o[x] = put(lut[((p[0] >> 2) << 12) | ((p[1] >> 2) << 6) | (p[2] >> 2)]);
+}
 }  // namespace
 
 Hsi rgbToHsi(double r, double g, double b)
@@ -296,44 +338,46 @@ void HsiBinner::binImage(const cv::Mat& image, cv::Mat& bins, double gain) const
     rows = 1;
   }
   const int channels = image.channels();
-  const uint8_t* glut = grey.data();
   for (int y = 0; y < rows; ++y)
+    binRow<false>(image.ptr<uint8_t>(y), cols, channels, lut, grey.data(), nullptr, bins.ptr<uint8_t>(y));
+}
+
+void HsiBinner::cellMeans(const cv::Mat& image, const std::array<uint8_t, 256>& weight, int cell, cv::Mat& out,
+                          double gain) const
+{
+  if (cell < 1 || cell > 16)
+    throw std::invalid_argument("HsiBinner::cellMeans: a cell is 1 to 16 pixels across, got " + std::to_string(cell));
+  const uint8_t* lut = nullptr;
+  std::array<uint8_t, 256> grey;
+  tables(image.type(), gain, lut, grey);
+  const int cols = image.cols / cell, rows = image.rows / cell;
+  out.create(rows, cols, CV_8UC1);
+  if (cols == 0 || rows == 0)
+    return;
+  const int channels = image.channels();
+  const int width = cols * cell;
+  const float inv_area = 1.0f / static_cast<float>(cell * cell);
+  // Per cell row: each image row's weights, summed down the cell's rows per column (at most 16 x 255: 16 bits),
+  // then across each cell's columns.
+  std::vector<uint8_t> row(width);
+  std::vector<uint16_t> down(width);
+  for (int cy = 0; cy < rows; ++cy)
   {
-    const uint8_t* p = image.ptr<uint8_t>(y);
-    uint8_t* o = bins.ptr<uint8_t>(y);
-    int x = 0;
-    if (channels == 1)
+    std::fill(down.begin(), down.end(), static_cast<uint16_t>(0));
+    for (int y = cy * cell; y < (cy + 1) * cell; ++y)
     {
-      for (; x < cols; ++x)
-        o[x] = glut[p[x]];
-      continue;
+      binRow<true>(image.ptr<uint8_t>(y), width, channels, lut, grey.data(), weight.data(), row.data());
+      for (int x = 0; x < width; ++x)
+        down[x] = static_cast<uint16_t>(down[x] + row[x]);
     }
-    if (channels == 4)
+    uint8_t* o = out.ptr<uint8_t>(cy);
+    for (int cx = 0; cx < cols; ++cx)
     {
-      for (; x < cols; ++x, p += 4)
-        o[x] = lut[((p[0] >> 2) << 12) | ((p[1] >> 2) << 6) | (p[2] >> 2)];
-      continue;
+      uint32_t sum = 0;
+      for (int k = cx * cell; k < (cx + 1) * cell; ++k)
+        sum += down[k];
+      o[cx] = cv::saturate_cast<uint8_t>(static_cast<float>(sum) * inv_area);  // rounded as OpenCV's area resize
     }
-#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
-    // The loop is bound by instruction count, not by the table read (measured: an all-black image is
-    // barely faster), so read 4 pixels with two 8-byte loads and build each index with 3 shifts/masks
-    // from a little-endian word b | g << 8 | r << 16. ~25% faster than byte-wise reads.
-    // The second load reads 2 bytes past the 4th pixel, so stop while one more pixel of this row follows.
-    auto index = [](uint32_t w) { return ((w & 0xFCu) << 10) | ((w >> 4) & 0xFC0u) | ((w >> 18) & 0x3Fu); };
-    for (; x + 4 < cols; x += 4, p += 12)
-    {
-      uint64_t a = 0;
-      uint64_t b = 0;
-      std::memcpy(&a, p, 8);
-      std::memcpy(&b, p + 6, 8);
-      o[x] = lut[index(static_cast<uint32_t>(a))];
-      o[x + 1] = lut[index(static_cast<uint32_t>(a >> 24))];
-      o[x + 2] = lut[index(static_cast<uint32_t>(b))];
-      o[x + 3] = lut[index(static_cast<uint32_t>(b >> 24))];
-    }
-#endif
-    for (; x < cols; ++x, p += 3)
-      o[x] = lut[((p[0] >> 2) << 12) | ((p[1] >> 2) << 6) | (p[2] >> 2)];
   }
 }
 

@@ -20,7 +20,7 @@ void MapProposals::draw(FeatureCache& cache, const std::vector<std::shared_ptr<O
   // template is not), on 4x4-pixel cells: a CDF over 20k cells instead of 300k pixels, and averaging
   // suppresses isolated pixels that happen to share the target's colour. Each map is brought to the cells
   // first (a model may give it at a lower resolution than the image's).
-  constexpr int kCell = 4;
+  constexpr int kCell = ObservationModel::kTargetMapCell;
   const cv::Size cells(std::max(1, g.width() / kCell), std::max(1, g.height() / kCell));
   auto toCells = [&cells](const cv::Mat& map, cv::Mat& out) {
     const bool shrink = map.cols >= cells.width && map.rows >= cells.height;

@@ -109,6 +109,13 @@ public:
   /// other types. With `gain` != 1 (applied in steps of 1/64) each channel value v is first scaled by it (and
   /// clipped at 255).
   void binImage(const cv::Mat& image, cv::Mat& bins, double gain = 1.0) const;
+  /// `out` (CV_8UC1, image.cols / cell x image.rows / cell) holds, per `cell` x `cell` block of `image` (as
+  /// binImage() takes it, at `gain`), the mean of `weight[bin]` over its pixels, rounded: what binning the image,
+  /// looking each bin up in `weight` and shrinking by area to the blocks gives, in one pass and without the bin
+  /// image. The last image.cols % cell columns and image.rows % cell rows are in no block. `cell`: 1 to 16
+  /// (std::invalid_argument otherwise, and for the types binImage() refuses).
+  void cellMeans(const cv::Mat& image, const std::array<uint8_t, 256>& weight, int cell, cv::Mat& out,
+                 double gain = 1.0) const;
 
   /// Bins of single pixels of one image at one gain, exactly as binImage() gives them: for a few hypotheses
   /// spread over the image (the background places beside the best particle span whole rows), whose samples
