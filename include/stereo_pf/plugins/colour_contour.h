@@ -49,7 +49,7 @@ namespace stereo_pf
 ///
 /// Parameters (in the plugin's namespace): hue_bins, saturation_bins, intensity_bins, achromatic_saturation,
 /// achromatic_intensity (as ColourHSI; structural, read at initialisation only), sigma (0.05, 0.001..10),
-/// lines (16, 4..256), preview_lines (0 = none, else 4..256, at most lines),
+/// lines (16, 4..256), preview_lines (8; 0 = none, else 4..256, at most lines),
 /// line_half_length (2 px, 1..10), softness (0.7 px, 0.1..10), target_margin
 /// (0.15, 0..0.45), radius (0 = learned; px, 0..2000), min_radius (2 px, 0.5..1000), perspective (true),
 /// intensity_tolerance (0: off, 0..1: P from both histograms spread along intensity, as ColourHSI's: a face of the
@@ -112,7 +112,7 @@ private:
     double min_radius = 2.0;
     bool perspective = true;
     double intensity_tolerance = 0.0;
-    int preview_lines = 0;
+    int preview_lines = 8;
   };
   /// The lines across the outline a hypothesis is sampled on, the same for every hypothesis.
   struct Pattern
