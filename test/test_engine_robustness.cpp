@@ -1823,6 +1823,10 @@ TEST(EngineAdaptation, ATurningBoxIsKeptPastItsNextFaceAndFoundAgainByItsFirst)
                 seed, kept, slips, refound, kept_fixed, refound_fixed);
     EXPECT_LE(slips, 3) << "kept, but not on the box in " << slips << " of its frames, seed " << seed;
     EXPECT_LT(kept_fixed, kept) << "seed " << seed;
+    // Past the side face, which faces the camera at frame 60, at every seed: the template once adapted only where the
+    // window at the estimate matched it, and on 6 of 21 seeds never adapted and lost the box by frame 60 (now it
+    // adapts where the object matches near the estimate: kept to frame 100 or later at seeds 1-21).
+    EXPECT_GT(kept, 90) << "seed " << seed << ": lost before the side face had turned in";
     kepts.push_back(kept);
     // Adapting, the box may be kept through every face (to frame 239); lost, it must be found again by its first
     // face. The fixed histogram always loses it.

@@ -34,12 +34,12 @@ void normalisedCorrelation(const cv::Mat& image, const cv::Mat& templ, cv::Mat& 
 ///   log-likelihood = (c - 1) / sigma,   similarity = max(0, c).
 /// A window without contrast has c = 0. Invalid or non-finite hypotheses score c = -1.
 ///
-/// Adaptation (adapt(), called by the engine after frames in which the tracked object was seen): when the window
-/// at the estimate correlates with the current template by at least `adapt_min`, a running template moves by
-/// `adapt_rate` towards the window within `adapt_align` apparent radii of the estimate (whole pixels) that correlates
-/// best with it: the object, not the estimate's error, is learned. The template used is `anchor` parts the one
-/// learned from the box and the rest the running one, so it follows a turning object but cannot drift away from what
-/// was boxed. Not thread-safe.
+/// Adaptation (adapt(), called by the engine after frames in which the tracked object was seen): of the windows
+/// within `adapt_align` apparent radii of the estimate (whole pixels), the one that correlates best with the current
+/// template is taken, and when it correlates by at least `adapt_min` a running template moves by `adapt_rate` towards
+/// it: the object, not the estimate's error, is learned, and the object is recognised near the estimate, not only at
+/// it. The template used is `anchor` parts the one learned from the box and the rest the running one, so it follows
+/// a turning object but cannot drift away from what was boxed. Not thread-safe.
 ///
 /// Parameters (in the plugin's namespace): size (13, 5..41; structural), ring_scale (1.25, 1..3), ring_weight
 /// (0.3, 0..1), sigma (0.3, 0.001..10: tempered, the samples are nearest pixels, so a sharper term pins the
