@@ -370,8 +370,9 @@ bool ColourHSI::targetMap(FeatureCache& cache, View view, cv::Mat& map)
   const double gain = cache.gain(view);
   map = cache.get(view, key, [this, gain](const cv::Mat& image, cv::Mat& out) {
     // Each bin's target probability, scaled to 255 at the most probable, averaged over the engine's cells in one
-    // pass over the image: the same map as binning the whole image and shrinking its back-projection by area, at
-    // a third of the cost (the full-resolution bins were needed by nothing else: the cues bin the regions they read).
+    // pass over the image: the same map as binning the whole image and shrinking its back-projection by area,
+    // without the full-resolution bins, back-projection and resize (nothing else needed them: the cues bin the
+    // regions they read). The recovery search's map proposals: 5.4 M instructions per step against 6.1 M.
     const std::vector<double>& q = scoring_.probabilities();
     const double q_max = *std::max_element(q.begin(), q.end());
     std::array<uint8_t, 256> weight{};
