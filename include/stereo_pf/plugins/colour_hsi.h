@@ -52,10 +52,10 @@ namespace stereo_pf
 /// intensity_bins (4, 1..64) with product <= 256, achromatic_saturation (0.1, 0..1),
 /// achromatic_intensity (0.08, 0..1), sigma (0.15, 0.001..10), window (11, odd 3..101),
 /// window_scale (0.7, 0.1..3), samples (11, 3..31), preview_samples (0 = none, else 3..31, at most samples),
-/// min_radius (2 px, 0.5..100), target_margin (0.15, 0..0.45), surround_scale (1.25; 0 = off, else 1..4), surround_margin (3 px, 0..100),
-/// surround_samples (32, 4..256), surround_weight (1.0, 0..10), adapt_rate (0.1; 0 = off, 0..1), adapt_min (0.6, 0..1),
-/// anchor (0.3, 0..1), intensity_tolerance (0: off, 0..1). The binning is structural (a learned target is tied to
-/// it) and is read at initialisation only; reconfigure() re-reads the others.
+/// min_radius (2 px, 0.5..100), target_margin (0.15, 0..0.45), surround_scale (1.25; 0 = off, else 1..4),
+/// surround_margin (3 px, 0..100), surround_samples (32, 4..256), surround_weight (1.0, 0..10), adapt_rate (0.1;
+/// 0 = off, 0..1), adapt_min (0.6, 0..1), anchor (0.3, 0..1), intensity_tolerance (0: off, 0..1). The binning is
+/// structural (a learned target is tied to it) and is read at initialisation only; reconfigure() re-reads the others.
 ///
 /// Shading (`intensity_tolerance` t > 0): a face turning away from the light keeps its hue and saturation and
 /// darkens, and with 4 intensity slices a darker face shares no bin with the face learned. Candidates are then
@@ -86,7 +86,8 @@ public:
   /// The log-likelihood of a coarser window (preview_samples per side) and ring, for screening; false when
   /// preview_samples is 0.
   bool preview(FeatureCache& cache, const ImageHypotheses& hyp, Eigen::Ref<Eigen::VectorXd> log_likelihood) override;
-  /// Back-projection of the target histogram: q[bin] / max q per pixel (CV_8UC1), once per frame per view.
+  /// Back-projection of the target histogram, q[bin] / max q, averaged over each kTargetMapCell-pixel cell (CV_8UC1,
+  /// image size / kTargetMapCell), once per frame per view.
   bool targetMap(FeatureCache& cache, View view, cv::Mat& map) override;
   /// Write a map named name() holding the binning and the target histogram (nothing without a target).
   void saveTarget(cv::FileStorage& fs) const override;
