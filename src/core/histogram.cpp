@@ -93,21 +93,34 @@ struct SparseHistogram::Tally
 {
   explicit Tally(SparseHistogram& h)
     : counts(h.counts_.data()), touched(h.touched_.data()), stamp(h.stamp_.data()), epoch(h.epoch_),
-      n_touched(h.n_touched_)
+      n_touched(static_cast<size_t>(h.n_touched_))
   {
   }
-  void count(int b, int bank) { ++counts[b * kBanks + bank]; }
-  void mark(int b)
+  // Bins and banks as size_t: with int the compiler sign-extends every index it builds.
+  void count(size_t b, size_t bank) { ++counts[b * kBanks + bank]; }
+  void mark(size_t b)
   {
     if (stamp[b] != epoch)
     {
       stamp[b] = epoch;
-      touched[n_touched++] = b;
+      touched[n_touched++] = static_cast<int>(b);
     }
+  }
+  /// Four samples, one per bank: the counts first, then the marks (so no count waits for a mark's branch).
+  void count4(size_t b0, size_t b1, size_t b2, size_t b3)
+  {
+    count(b0, 0);
+    count(b1, 1);
+    count(b2, 2);
+    count(b3, 3);
+    mark(b0);
+    mark(b1);
+    mark(b2);
+    mark(b3);
   }
   void store(SparseHistogram& h, int samples) const
   {
-    h.n_touched_ = n_touched;
+    h.n_touched_ = static_cast<int>(n_touched);
     h.n_ += samples;
   }
 
@@ -115,7 +128,7 @@ struct SparseHistogram::Tally
   int* touched;
   uint32_t* stamp;
   const uint32_t epoch;
-  int n_touched;
+  size_t n_touched;
 };
 
 void SparseHistogram::addGrid(const uint8_t* data, size_t step, const int* rows, int nr, const int* cols, int nc)
@@ -128,23 +141,27 @@ void SparseHistogram::addGrid(const uint8_t* data, size_t step, const int* rows,
     int k = 0;
     for (; k + 4 <= nc; k += 4)
     {
-      const int b0 = row[cols[k]];
-      const int b1 = row[cols[k + 1]];
-      const int b2 = row[cols[k + 2]];
-      const int b3 = row[cols[k + 3]];
-      t.count(b0, 0);
-      t.count(b1, 1);
-      t.count(b2, 2);
-      t.count(b3, 3);
-      t.mark(b0);
-      t.mark(b1);
-      t.mark(b2);
-      t.mark(b3);
+      const size_t b0 = row[cols[k]], b1 = row[cols[k + 1]], b2 = row[cols[k + 2]], b3 = row[cols[k + 3]];
+      t.count4(b0, b1, b2, b3);
     }
-    for (; k < nc; ++k)
+    // The last 0-3 columns without a loop (their number is the same on every row), in order.
+    const int rest = nc - k;
+    if (rest > 0)
     {
-      const int b = row[cols[k]];
-      t.count(b, k & 3);
+      const size_t b = row[cols[k]];
+      t.count(b, 0);
+      t.mark(b);
+    }
+    if (rest > 1)
+    {
+      const size_t b = row[cols[k + 1]];
+      t.count(b, 1);
+      t.mark(b);
+    }
+    if (rest > 2)
+    {
+      const size_t b = row[cols[k + 2]];
+      t.count(b, 2);
       t.mark(b);
     }
   }
@@ -154,9 +171,13 @@ void SparseHistogram::addGrid(const uint8_t* data, size_t step, const int* rows,
 void SparseHistogram::addValues(const uint8_t* values, int n)
 {
   Tally t(*this);
-  for (int k = 0; k < n; ++k)
+  static_assert(kBanks == 4, "the unrolled loop below assumes 4 banks");
+  int k = 0;
+  for (; k + 4 <= n; k += 4)
+    t.count4(values[k], values[k + 1], values[k + 2], values[k + 3]);
+  for (; k < n; ++k)
   {
-    t.count(values[k], k & 3);
+    t.count(values[k], static_cast<size_t>(k & 3));
     t.mark(values[k]);
   }
   t.store(*this, std::max(n, 0));
