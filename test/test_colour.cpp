@@ -642,9 +642,56 @@ TEST(Histogram, GridSamplingMatchesSingleSamples)
       }
     ASSERT_EQ(grid.samples(), static_cast<int>(rows.size() * cols.size()));
     const double dense = bhattacharyya(TargetHistogram(counts).probabilities(), target.probabilities());
-    ASSERT_NEAR(grid.scoreAndClear(target), dense, 1e-9) << "trial " << trial;
-    ASSERT_NEAR(single.scoreAndClear(target), dense, 1e-9) << "trial " << trial;
+    // The grid counts its samples in the order add() would: the same bins touched first, summed in that order.
+    const double by_grid = grid.scoreAndClear(target);
+    ASSERT_NEAR(by_grid, dense, 1e-9) << "trial " << trial;
+    ASSERT_EQ(by_grid, single.scoreAndClear(target)) << "trial " << trial;
   }
+}
+
+TEST(Histogram, WindowGridKeepsTheInImageSamplesInOrder)
+{
+  // place() against its definition: the sample coordinates cvRound(centre + half * offset) for offsets spread
+  // evenly over [-1, 1], the ones inside the image kept in order; windows inside, across a border, larger than
+  // the image and off it, every grid size the cues allow, negative half-sizes and NaN included.
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<float> pos(-60.0f, 110.0f), size(0.0f, 80.0f);
+  const int width = 50, height = 40;
+  for (int samples = 1; samples <= WindowGrid::kMaxSamples; ++samples)
+  {
+    WindowGrid grid;
+    grid.reset(samples);
+    ASSERT_EQ(grid.samples(), samples);
+    for (int trial = 0; trial < 400; ++trial)
+    {
+      const float u = pos(rng), v = pos(rng);
+      const float half = trial % 50 == 0 ? -size(rng) : (trial % 7 == 0 ? 0.5f * trial : size(rng));
+      std::vector<int> cols, rows;
+      const bool near = u > -half - 1.0f && u < width + half + 1.0f && v > -half - 1.0f && v < height + half + 1.0f;
+      for (int k = 0; near && k < samples; ++k)
+      {
+        const float o = samples > 1 ? static_cast<float>(-1.0 + 2.0 * k / (samples - 1)) : 0.0f;
+        const int x = cvRound(u + half * o), y = cvRound(v + half * o);
+        if (x >= 0 && x < width)
+          cols.push_back(x);
+        if (y >= 0 && y < height)
+          rows.push_back(y);
+      }
+      const int min_inside = trial % 3;
+      const bool placed = grid.place(u, v, half, width, height, min_inside);
+      ASSERT_EQ(placed, near && static_cast<int>(cols.size() * rows.size()) >= min_inside)
+          << "samples " << samples << " u " << u << " v " << v << " half " << half;
+      if (!near)
+        continue;
+      ASSERT_EQ(std::vector<int>(grid.cols(), grid.cols() + grid.numCols()), cols) << "u " << u << " half " << half;
+      ASSERT_EQ(std::vector<int>(grid.rows(), grid.rows() + grid.numRows()), rows) << "v " << v << " half " << half;
+    }
+    EXPECT_FALSE(grid.place(std::nanf(""), 10.0f, 5.0f, width, height, 0));
+    EXPECT_FALSE(grid.place(10.0f, 10.0f, std::nanf(""), width, height, 0));
+  }
+  WindowGrid grid;
+  EXPECT_THROW(grid.reset(0), std::invalid_argument);
+  EXPECT_THROW(grid.reset(WindowGrid::kMaxSamples + 1), std::invalid_argument);
 }
 
 TEST(Histogram, ValueBatchesScoreExactlyAsSingleSamples)

@@ -7,6 +7,8 @@
 #include <stdexcept>
 #include <string>
 
+#include <opencv2/core/hal/intrin.hpp>
+
 namespace stereo_pf
 {
 TargetHistogram::TargetHistogram(const std::vector<double>& counts)
@@ -285,28 +287,69 @@ bool targetRegion(const cv::Size& image_size, const cv::Rect& roi, double margin
 
 void WindowGrid::reset(int samples)
 {
-  offsets_.resize(samples);
-  for (int k = 0; k < samples; ++k)
-    offsets_[k] = samples > 1 ? static_cast<float>(-1.0 + 2.0 * k / (samples - 1)) : 0.0f;
-  cols_.resize(samples);
-  rows_.resize(samples);
+  if (samples < 1 || samples > kMaxSamples)
+    throw std::invalid_argument("WindowGrid::reset: samples must lie in [1, " + std::to_string(kMaxSamples) +
+                                "], got " + std::to_string(samples));
+  samples_ = samples;
+  // Padded to whole vectors with the last offset (its lanes are computed, never kept).
+  const int padded = (samples + 3) / 4 * 4;
+  offsets_.assign(padded, 0.0f);
+  for (int k = 0; k < padded; ++k)
+  {
+    const int j = std::min(k, samples - 1);
+    offsets_[k] = samples > 1 ? static_cast<float>(-1.0 + 2.0 * j / (samples - 1)) : 0.0f;
+  }
+  cols_.resize(padded);
+  rows_.resize(padded);
 }
+
+namespace
+{
+/// The grid's coordinates along one axis, cvRound(c + half * offsets[k]) for every k < n, into out; the ones in
+/// [0, size) are out[first, first + count). With half >= 0 they rise with k, so those in the image are one run:
+/// where the coordinates below 0 and those below `size` end gives it without a test per sample.
+void axisSpan(float c, float half, int size, int n, const float* offsets, int* out, int& first, int& count)
+{
+  if (half >= 0.0f)
+  {
+    const cv::v_float32x4 v_c = cv::v_setall_f32(c), v_half = cv::v_setall_f32(half);
+    const cv::v_int32x4 zero = cv::v_setzero_s32(), v_size = cv::v_setall_s32(size);
+    uint64_t below = 0, inside_or_below = 0;
+    for (int k = 0; k < n; k += 4)
+    {
+      const cv::v_int32x4 x = cv::v_round(v_c + v_half * cv::v_load(offsets + k));  // as cvRound: ties to even
+      cv::v_store(out + k, x);
+      below |= static_cast<uint64_t>(cv::v_signmask(x < zero)) << k;
+      inside_or_below |= static_cast<uint64_t>(cv::v_signmask(x < v_size)) << k;
+    }
+    // Both masks are runs of ones from bit 0 (the coordinates rise): their lengths are the trailing ones
+    // (one bit-scan instruction each; a population count is a library call without -mpopcnt).
+    const uint64_t valid = (uint64_t{ 1 } << n) - 1u;
+    first = __builtin_ctzll(~(below & valid));
+    count = std::max(__builtin_ctzll(~(inside_or_below & valid)) - first, 0);
+    return;
+  }
+  // A negative half-size (not used by the cues): the coordinates fall with k; kept in order, one by one.
+  first = 0;
+  count = 0;
+  for (int k = 0; k < n; ++k)
+  {
+    const int x = cvRound(c + half * offsets[k]);
+    if (x >= 0 && x < size)
+      out[count++] = x;
+  }
+}
+}  // namespace
 
 bool WindowGrid::place(float u, float v, float half, int width, int height, int min_inside)
 {
   nc_ = nr_ = 0;
+  col0_ = row0_ = 0;
   // Written so that NaN positions fail too.
   if (!(u > -half - 1.0f && u < width + half + 1.0f && v > -half - 1.0f && v < height + half + 1.0f))
     return false;
-  for (size_t k = 0; k < offsets_.size(); ++k)
-  {
-    const int x = cvRound(u + half * offsets_[k]);
-    if (x >= 0 && x < width)
-      cols_[nc_++] = x;
-    const int y = cvRound(v + half * offsets_[k]);
-    if (y >= 0 && y < height)
-      rows_[nr_++] = y;
-  }
+  axisSpan(u, half, width, samples_, offsets_.data(), cols_.data(), col0_, nc_);
+  axisSpan(v, half, height, samples_, offsets_.data(), rows_.data(), row0_, nr_);
   return nc_ * nr_ >= min_inside;
 }
 

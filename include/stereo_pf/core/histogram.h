@@ -132,17 +132,20 @@ public:
   /// False when the window is off the image (NaN positions included) or fewer than `min_inside` samples land
   /// inside it.
   bool place(float u, float v, float half, int width, int height, int min_inside);
-  const int* cols() const { return cols_.data(); }  ///< in-image sample columns of the last place()
-  const int* rows() const { return rows_.data(); }  ///< in-image sample rows of the last place()
+  const int* cols() const { return cols_.data() + col0_; }  ///< in-image sample columns of the last place()
+  const int* rows() const { return rows_.data() + row0_; }  ///< in-image sample rows of the last place()
   /// Grid points per axis (reset()'s `samples`).
-  int samples() const { return static_cast<int>(offsets_.size()); }
+  int samples() const { return samples_; }
   int numCols() const { return nc_; }
   int numRows() const { return nr_; }
+  static constexpr int kMaxSamples = 32;  ///< reset() throws std::invalid_argument beyond it (or below 1)
 
 private:
-  std::vector<float> offsets_;
+  std::vector<float> offsets_;  // padded to whole vectors
   std::vector<int> cols_, rows_;
+  int samples_ = 0;
   int nc_ = 0, nr_ = 0;
+  int col0_ = 0, row0_ = 0;  // the last place()'s in-image samples start here in cols_ and rows_
 };
 
 /// The settings every histogram cue (ColourHSI, TextureEdge) reads the same way: the likelihood's sigma, where
