@@ -17,6 +17,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "stereo_pf/core/area_means.h"
 #include "stereo_pf/core/colour.h"
 #include "stereo_pf/core/feature_cache.h"
 #include "stereo_pf/core/histogram.h"
@@ -509,6 +510,39 @@ TEST(Binner, CellMeansAreTheBinWeightsShrunkByArea)
 
 // ---------------------------------------------------------------------------------------------------
 // Histograms
+
+TEST(AreaMeans, AreOpenCVsAreaResizeByAWholeFactor)
+{
+  // areaMeans() against cv::resize(INTER_AREA) on the whole cells, at every factor it is used for (1, 3 to 16),
+  // on noise, on flat patches (many sums exactly between two levels) and on a ROI of a larger image.
+  cv::RNG rng(31);
+  for (int cell = 1; cell <= 16; ++cell)
+  {
+    if (cell == 2)
+      continue;  // OpenCV rounds ties up there; the template map keeps cv::resize for it
+    for (int trial = 0; trial < 3; ++trial)
+    {
+      cv::Mat whole(97, 131, CV_8UC1);
+      rng.fill(whole, cv::RNG::UNIFORM, 0, 256);
+      if (trial == 1)  // a checkerboard of two levels: every even cell's mean lies halfway between them
+        for (int y = 0; y < whole.rows; ++y)
+          for (int x = 0; x < whole.cols; ++x)
+            whole.at<uint8_t>(y, x) = static_cast<uint8_t>(100 + cell % 3 + ((x + y) & 1));
+      const cv::Mat img = trial == 2 ? whole(cv::Rect(3, 2, 120, 90)) : whole;
+      cv::Mat means, shrunk;
+      areaMeans(img, cell, means);
+      ASSERT_EQ(means.size(), cv::Size(img.cols / cell, img.rows / cell));
+      cv::resize(img(cv::Rect(0, 0, means.cols * cell, means.rows * cell)), shrunk, means.size(), 0, 0,
+                 cv::INTER_AREA);
+      EXPECT_EQ(cv::countNonZero(means != shrunk), 0) << "cell " << cell << " trial " << trial;
+    }
+  }
+  cv::Mat out;
+  EXPECT_THROW(areaMeans(cv::Mat(8, 8, CV_8UC3), 4, out), std::invalid_argument);
+  EXPECT_THROW(areaMeans(cv::Mat(8, 8, CV_8UC1), 17, out), std::invalid_argument);
+  areaMeans(cv::Mat(3, 8, CV_8UC1, cv::Scalar(9)), 4, out);
+  EXPECT_TRUE(out.empty());
+}
 
 TEST(Histogram, NormalisedWithSquareRoots)
 {

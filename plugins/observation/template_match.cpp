@@ -14,6 +14,7 @@
 #include <opencv2/imgproc.hpp>
 #include <pluginlib/class_list_macros.hpp>
 
+#include "stereo_pf/core/area_means.h"
 #include "stereo_pf/core/histogram.h"
 
 namespace stereo_pf
@@ -403,7 +404,11 @@ bool TemplateMatch::targetMap(FeatureCache& cache, View view, cv::Mat& map)
     // The columns and rows a whole number of cells cover: resized by a fractional factor (640 / 213), OpenCV
     // weighs every sample's pixels separately, nearly three times as slowly as by the whole factor.
     const cv::Size cells(gray.cols / factor, gray.rows / factor);
-    cv::resize(gray(cv::Rect(0, 0, cells.width * factor, cells.height * factor)), small, cells, 0, 0, cv::INTER_AREA);
+    const cv::Mat whole = gray(cv::Rect(0, 0, cells.width * factor, cells.height * factor));
+    if (factor == 2 || factor > 16)
+      cv::resize(whole, small, cells, 0, 0, cv::INTER_AREA);
+    else
+      areaMeans(whole, factor, small);  // the same values, in about a third of the instructions
     cv::Mat templ(size_, size_, CV_32F, const_cast<float*>(current_.data()));
     cv::Mat t;
     const int tw = std::max(3, static_cast<int>(std::lround(2.0 * hx / factor)));

@@ -2,6 +2,8 @@
 // Copyright (c) 2026, stereo_pf developers
 #include "stereo_pf/core/colour.h"
 
+#include "stereo_pf/core/area_means.h"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -391,55 +393,18 @@ void HsiBinner::cellMeans(const cv::Mat& image, const std::array<uint8_t, 256>& 
     return;
   const int channels = image.channels();
   const int width = cols * cell;
-  const float inv_area = 1.0f / static_cast<float>(cell * cell);
-  // Per cell row: each image row's weights, summed down the cell's rows per column (at most 16 x 255: 16 bits),
-  // then across each cell's columns.
+  // Per cell row: each image row's weights, summed down the cell's rows per column, then across each cell.
   std::vector<uint8_t> row(width);
-  std::vector<uint16_t> down(width);
+  CellRows sums;
   for (int cy = 0; cy < rows; ++cy)
   {
-    std::fill(down.begin(), down.end(), static_cast<uint16_t>(0));
+    sums.start(width, cell);
     for (int y = cy * cell; y < (cy + 1) * cell; ++y)
     {
       binRow<true>(image.ptr<uint8_t>(y), width, channels, lut, grey.data(), weight.data(), row.data());
-      int x = 0;
-#if CV_SIMD128
-      for (; x + 16 <= width; x += 16)
-      {
-        cv::v_uint16x8 lo, hi;
-        cv::v_expand(cv::v_load(row.data() + x), lo, hi);
-        cv::v_store(down.data() + x, cv::v_load(down.data() + x) + lo);
-        cv::v_store(down.data() + x + 8, cv::v_load(down.data() + x + 8) + hi);
-      }
-#endif
-      for (; x < width; ++x)
-        down[x] = static_cast<uint16_t>(down[x] + row[x]);
+      sums.add(row.data());
     }
-    uint8_t* o = out.ptr<uint8_t>(cy);
-    int cx = 0;
-#if CV_SIMD128
-    if (cell == 4)  // the recovery search's cells: 8 cells from 32 columns, rounded as below (to nearest, ties even)
-    {
-      const cv::v_float32x4 v_inv_area = cv::v_setall_f32(inv_area);
-      auto mean = [&](const cv::v_uint32x4& sum)
-      { return cv::v_round(cv::v_cvt_f32(cv::v_reinterpret_as_s32(sum)) * v_inv_area); };
-      for (; cx + 8 <= cols; cx += 8)
-      {
-        cv::v_uint16x8 a, b, c, d;
-        cv::v_load_deinterleave(down.data() + cx * 4, a, b, c, d);
-        cv::v_uint32x4 lo, hi;
-        cv::v_expand(a + b + c + d, lo, hi);  // at most 16 x 255: no saturation
-        cv::v_pack_u_store(o + cx, cv::v_pack(mean(lo), mean(hi)));
-      }
-    }
-#endif
-    for (; cx < cols; ++cx)
-    {
-      uint32_t sum = 0;
-      for (int k = cx * cell; k < (cx + 1) * cell; ++k)
-        sum += down[k];
-      o[cx] = cv::saturate_cast<uint8_t>(static_cast<float>(sum) * inv_area);  // rounded as OpenCV's area resize
-    }
+    sums.means(out.ptr<uint8_t>(cy));
   }
 }
 
