@@ -275,6 +275,7 @@ float insideSum(const uint8_t* fg, const std::ptrdiff_t* base, const float* orig
     const std::ptrdiff_t* off = offsets + k * M;
     const float* al = along + k * M;
     float line_sum = 0.0f;
+#pragma GCC unroll 8  // -O2 keeps the loop over a line's M samples otherwise (a fifth of the cost)
     for (int j = 0; j < M; ++j)
     {
       const int t = std::min(std::max(static_cast<int>(al[j] + o), 0), last);
