@@ -687,7 +687,7 @@ TEST(Histogram, WindowGridKeepsTheInImageSamplesInOrder)
 {
   // place() against its definition: the sample coordinates cvRound(centre + half * offset) for offsets spread
   // evenly over [-1, 1], the ones inside the image kept in order; windows inside, across a border, larger than
-  // the image and off it, every grid size the cues allow, negative half-sizes and NaN included.
+  // the image and off it, every grid size the cues allow, negative and huge half-sizes and NaN included.
   std::mt19937 rng(17);
   std::uniform_real_distribution<float> pos(-60.0f, 110.0f), size(0.0f, 80.0f);
   const int width = 50, height = 40;
@@ -699,7 +699,9 @@ TEST(Histogram, WindowGridKeepsTheInImageSamplesInOrder)
     for (int trial = 0; trial < 400; ++trial)
     {
       const float u = pos(rng), v = pos(rng);
-      const float half = trial % 50 == 0 ? -size(rng) : (trial % 7 == 0 ? 0.5f * trial : size(rng));
+      const float half = trial % 50 == 0 ? -size(rng)
+                         : trial % 97 == 0 ? 3e9f  // coordinates beyond int: cvRound gives INT_MIN, outside
+                         : (trial % 7 == 0 ? 0.5f * trial : size(rng));
       std::vector<int> cols, rows;
       const bool near = u > -half - 1.0f && u < width + half + 1.0f && v > -half - 1.0f && v < height + half + 1.0f;
       for (int k = 0; near && k < samples; ++k)

@@ -408,7 +408,7 @@ bool TemplateMatch::targetMap(FeatureCache& cache, View view, cv::Mat& map)
     if (factor == 2 || factor > 16)
       cv::resize(whole, small, cells, 0, 0, cv::INTER_AREA);
     else
-      areaMeans(whole, factor, small);  // the same values, in about a third of the instructions
+      areaMeans(whole, factor, small);  // the same values, in about half the instructions
     cv::Mat templ(size_, size_, CV_32F, const_cast<float*>(current_.data()));
     cv::Mat t;
     const int tw = std::max(3, static_cast<int>(std::lround(2.0 * hx / factor)));

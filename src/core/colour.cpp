@@ -2,8 +2,6 @@
 // Copyright (c) 2026, stereo_pf developers
 #include "stereo_pf/core/colour.h"
 
-#include "stereo_pf/core/area_means.h"
-
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -12,6 +10,8 @@
 #include <stdexcept>
 
 #include <opencv2/core/hal/intrin.hpp>
+
+#include "stereo_pf/core/area_means.h"
 
 namespace stereo_pf
 {

@@ -310,7 +310,7 @@ namespace
 /// where the coordinates below 0 and those below `size` end gives it without a test per sample.
 void axisSpan(float c, float half, int size, int n, const float* offsets, int* out, int& first, int& count)
 {
-  if (half >= 0.0f)
+  if (half >= 0.0f && std::abs(c) + half < 1e9f)  // (beyond, a rounding overflows to INT_MIN and falls)
   {
     const cv::v_float32x4 v_c = cv::v_setall_f32(c), v_half = cv::v_setall_f32(half);
     const cv::v_int32x4 zero = cv::v_setzero_s32(), v_size = cv::v_setall_s32(size);
@@ -329,7 +329,7 @@ void axisSpan(float c, float half, int size, int n, const float* offsets, int* o
     count = std::max(__builtin_ctzll(~(inside_or_below & valid)) - first, 0);
     return;
   }
-  // A negative half-size (not used by the cues): the coordinates fall with k; kept in order, one by one.
+  // A negative half-size (not used by the cues) or a huge one: kept in order, one by one.
   first = 0;
   count = 0;
   for (int k = 0; k < n; ++k)

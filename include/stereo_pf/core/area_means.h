@@ -33,6 +33,6 @@ private:
 /// `out` (CV_8UC1, grey.cols / cell x grey.rows / cell): the mean of each `cell` x `cell` block of the CV_8UC1
 /// image `grey`, value for value what cv::resize(INTER_AREA) gives on its first (cols / cell) * cell columns and
 /// rows, in one pass (OpenCV's area resize by a whole factor other than 2 takes about 5 instructions a pixel, this
-/// 1.5). Throws std::invalid_argument for another type or a cell outside 1 to 16.
+/// under 3). Throws std::invalid_argument for another type or a cell outside 1 to 16.
 void areaMeans(const cv::Mat& grey, int cell, cv::Mat& out);
 }  // namespace stereo_pf
