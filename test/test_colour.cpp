@@ -508,9 +508,6 @@ TEST(Binner, CellMeansAreTheBinWeightsShrunkByArea)
   EXPECT_TRUE(out.empty()) << "fewer rows than a cell: no cells";
 }
 
-// ---------------------------------------------------------------------------------------------------
-// Histograms
-
 TEST(AreaMeans, AreOpenCVsAreaResizeByAWholeFactor)
 {
   // areaMeans() against cv::resize(INTER_AREA) on the whole cells, at every factor it is used for (1, 3 to 16),
@@ -543,6 +540,9 @@ TEST(AreaMeans, AreOpenCVsAreaResizeByAWholeFactor)
   areaMeans(cv::Mat(3, 8, CV_8UC1, cv::Scalar(9)), 4, out);
   EXPECT_TRUE(out.empty());
 }
+
+// ---------------------------------------------------------------------------------------------------
+// Histograms
 
 TEST(Histogram, NormalisedWithSquareRoots)
 {

@@ -18,37 +18,34 @@ void CellRows::start(int width, int cell)
   rows_ = 0;
 }
 
-void CellRows::add(const uint8_t* row)
+namespace
 {
-  const int width = static_cast<int>(down_.size());
-  uint16_t* down = down_.data();
+/// down[x] = row[x] (the first row of a cell row: no pass to zero the sums first) or down[x] += row[x].
+template <bool First>
+void sumDown(const uint8_t* row, int width, uint16_t* down)
+{
   int x = 0;
-  if (rows_++ == 0)  // the first row starts the sums (no pass to zero them)
-  {
-#if CV_SIMD128
-    for (; x + 16 <= width; x += 16)
-    {
-      cv::v_uint16x8 lo, hi;
-      cv::v_expand(cv::v_load(row + x), lo, hi);
-      cv::v_store(down + x, lo);
-      cv::v_store(down + x + 8, hi);
-    }
-#endif
-    for (; x < width; ++x)
-      down[x] = row[x];
-    return;
-  }
 #if CV_SIMD128
   for (; x + 16 <= width; x += 16)
   {
     cv::v_uint16x8 lo, hi;
     cv::v_expand(cv::v_load(row + x), lo, hi);
-    cv::v_store(down + x, cv::v_load(down + x) + lo);  // at most 16 x 255: no saturation
-    cv::v_store(down + x + 8, cv::v_load(down + x + 8) + hi);
+    cv::v_store(down + x, First ? lo : cv::v_load(down + x) + lo);  // at most 16 x 255: no saturation
+    cv::v_store(down + x + 8, First ? hi : cv::v_load(down + x + 8) + hi);
   }
 #endif
   for (; x < width; ++x)
-    down[x] = static_cast<uint16_t>(down[x] + row[x]);
+    down[x] = static_cast<uint16_t>(First ? row[x] : down[x] + row[x]);
+}
+}  // namespace
+
+void CellRows::add(const uint8_t* row)
+{
+  const int width = static_cast<int>(down_.size());
+  if (rows_++ == 0)
+    sumDown<true>(row, width, down_.data());
+  else
+    sumDown<false>(row, width, down_.data());
 }
 
 void CellRows::means(uint8_t* out) const
