@@ -222,6 +222,33 @@ TEST(EngineBounds, TheRightTargetIsTrackedAndStandsOutFromTheBackground)
   EXPECT_GT(r.evidence - r.background, 0.5) << "evidence " << r.evidence << ", background " << r.background;
 }
 
+// A large object's background is measured too: beside a ball whose image is a third of the image's height, the
+// samples of the background (2.5 radii clear of it, their centres in the image) score the cluttered backdrop,
+// which holds patches of the ball's colour. With samples 3 radii clear and their whole windows in the image, the
+// rows held too few of them on 9 of these 20 frames, and the check did not run there.
+TEST(EngineBounds, ALargeObjectIsJudgedAgainstTheBackgroundBesideIt)
+{
+  SceneDescription d = loadScene(std::string(SCENES_DIR) + "/pendulum_cluttered.yaml");
+  d.objects[0].radius *= 5.0;
+  d.background.target_patches = 30;
+  Scene scene(d);
+  FilterEngine engine(position3D(), defaultCues(), EngineConfig());
+  std::string error;
+  ASSERT_TRUE(engine.learnTarget(scene.frame(0), scene.renderer().targetRoi(0), error)) << error;
+  const cv::Rect roi = scene.renderer().targetRoi(0);
+  ASSERT_GT(roi.height, scene.frame(0).left.rows / 4) << "the ball's image is not large";
+  int measured = 0, seen = 0;
+  for (int k = 0; k < 20; ++k)
+  {
+    const FrameResult r = engine.step(scene.frame(k));
+    measured += r.background > 0.0 ? 1 : 0;
+    seen += r.support == Support::Seen ? 1 : 0;
+    EXPECT_LT(r.background, r.evidence) << "frame " << k;
+  }
+  EXPECT_GE(measured, 19) << "frames whose background was measured, of 20";
+  EXPECT_GE(seen, 19) << "frames seen, of 20";
+}
+
 namespace
 {
 /// Position3D that, when asked, throws every particle far beyond what the cameras resolve.
