@@ -222,7 +222,7 @@ TEST(EngineBounds, TheRightTargetIsTrackedAndStandsOutFromTheBackground)
   EXPECT_GT(r.evidence - r.background, 0.5) << "evidence " << r.evidence << ", background " << r.background;
 }
 
-// A large object's background is measured too: beside a ball whose image is a third of the image's height, the
+// A large object's background is measured too: beside a ball whose image is 0.3 of the image's height, the
 // samples of the background (2.5 radii clear of it, their centres in the image) score the cluttered backdrop,
 // which holds patches of the ball's colour. With samples 3 radii clear and their whole windows in the image, the
 // rows held too few of them on 9 of these 20 frames, and the check did not run there.
